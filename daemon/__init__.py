@@ -1,0 +1,1 @@
+"""stylecast.daemon — see ARCHITECTURE.md in the README."""

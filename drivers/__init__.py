@@ -1,0 +1,1 @@
+"""stylecast.drivers — see ARCHITECTURE.md in the README."""

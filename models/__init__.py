@@ -1,0 +1,1 @@
+"""stylecast.models — see ARCHITECTURE.md in the README."""

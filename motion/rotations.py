@@ -1,0 +1,133 @@
+"""Rotation helpers and the conventions every part of stylecast follows.
+
+Conventions (stated once, here):
+
+* Quaternions are stored (x, y, z, w), scalar last, as in VMC and scipy.
+* Internal space is BVH space: right-handed, Y up, the performer facing +Z in the T-pose
+  (so the performer's left is +X), lengths in centimetres. Unity space (left-handed,
+  metres) exists only in ``motion.unity``; nothing else flips an axis.
+* Euler orders are written as BVH channel orders ("ZXY" = the channels Zrotation,
+  Xrotation, Yrotation in that order) and mean intrinsic rotations applied in that order:
+  R = Rz @ Rx @ Ry for "ZXY". That is scipy's upper-case (intrinsic) convention.
+  Angles are degrees.
+* A local rotation maps a joint's frame into its parent's frame; a world (global)
+  rotation maps it into the world frame: world[j] = world[parent] * local[j].
+
+All functions take arrays of any leading shape (..., 4) and are vectorised over it; the
+algebra itself is scipy's ``Rotation``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def _flat(q: np.ndarray) -> tuple[Rotation, tuple[int, ...]]:
+    q = np.asarray(q, dtype=np.float64)
+    return Rotation.from_quat(q.reshape(-1, 4)), q.shape[:-1]
+
+
+def identity(shape: tuple[int, ...] = ()) -> np.ndarray:
+    return np.broadcast_to(IDENTITY, (*shape, 4)).copy()
+
+
+def from_euler(angles_deg: np.ndarray, order: str) -> np.ndarray:
+    """Euler angles (..., 3) in channel ``order`` (e.g. "ZXY") to quaternions (..., 4)."""
+    a = np.asarray(angles_deg, dtype=np.float64)
+    r = Rotation.from_euler(order.upper(), a.reshape(-1, 3), degrees=True)
+    return r.as_quat().reshape(*a.shape[:-1], 4)
+
+
+def to_euler(q: np.ndarray, order: str) -> np.ndarray:
+    """Quaternions (..., 4) to Euler angles (..., 3) in degrees, channel ``order``."""
+    r, shape = _flat(q)
+    import warnings
+
+    with warnings.catch_warnings():
+        # Gimbal lock is a property of the representation, not an error: scipy still
+        # returns a valid decomposition (third angle zero).
+        warnings.simplefilter("ignore", UserWarning)
+        e = r.as_euler(order.upper(), degrees=True)
+    return e.reshape(*shape, 3)
+
+
+def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a * b (apply b first, then a), broadcasting leading shapes."""
+    a, b = np.broadcast_arrays(np.asarray(a, np.float64), np.asarray(b, np.float64))
+    ra, shape = _flat(a)
+    rb, _ = _flat(b)
+    return (ra * rb).as_quat().reshape(*shape, 4)
+
+
+def inverse(q: np.ndarray) -> np.ndarray:
+    q = np.asarray(q, dtype=np.float64)
+    return q * np.array([-1.0, -1.0, -1.0, 1.0]) / np.sum(q * q, axis=-1, keepdims=True)
+
+
+def apply(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors (..., 3) by quaternions (..., 4), broadcasting leading shapes."""
+    q = np.asarray(q, np.float64)
+    v = np.asarray(v, np.float64)
+    shape = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    q = np.broadcast_to(q, (*shape, 4))
+    v = np.broadcast_to(v, (*shape, 3))
+    r, _ = _flat(q)
+    return r.apply(np.array(v.reshape(-1, 3))).reshape(*shape, 3)  # scipy needs a writable buffer
+
+
+def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray | float) -> np.ndarray:
+    """Element-wise spherical interpolation from q0 (t=0) to q1 (t=1) along the short arc."""
+    q0, q1 = np.broadcast_arrays(np.asarray(q0, np.float64), np.asarray(q1, np.float64))
+    t = np.broadcast_to(np.asarray(t, np.float64), q0.shape[:-1])
+    r0, shape = _flat(q0)
+    r1, _ = _flat(q1)
+    # Rotation.as_rotvec of the relative rotation is already the short arc.
+    delta = (r0.inv() * r1).as_rotvec() * t.reshape(-1, 1)
+    return (r0 * Rotation.from_rotvec(delta)).as_quat().reshape(*shape, 4)
+
+
+def angle_between(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    """Geodesic angle in degrees between two rotations (element-wise).
+
+    atan2 of the relative rotation's vector and scalar parts stays accurate near zero,
+    where arccos of a dot product loses half the digits."""
+    rel = multiply(inverse(q0), q1)
+    return np.degrees(2.0 * np.arctan2(np.linalg.norm(rel[..., :3], axis=-1), np.abs(rel[..., 3])))
+
+
+def swing(from_dir: np.ndarray, to_dir: np.ndarray, fallback_axis: np.ndarray) -> np.ndarray:
+    """The smallest rotation turning ``from_dir`` onto ``to_dir`` (both 3-vectors).
+
+    When the two are opposite the smallest rotation is not unique; it turns 180 degrees
+    about ``fallback_axis`` (made perpendicular to ``from_dir``) so callers can keep a
+    limb in a chosen plane instead of flipping it at random.
+    """
+    a = np.asarray(from_dir, np.float64) / np.linalg.norm(from_dir)
+    b = np.asarray(to_dir, np.float64) / np.linalg.norm(to_dir)
+    axis = np.cross(a, b)
+    s, c = np.linalg.norm(axis), float(np.dot(a, b))
+    if s < 1e-9:
+        if c > 0:
+            return IDENTITY.copy()
+        f = np.asarray(fallback_axis, np.float64)
+        f = f - np.dot(f, a) * a
+        return Rotation.from_rotvec(np.pi * f / np.linalg.norm(f)).as_quat()
+    return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_quat()
+
+
+def canonical_hemisphere(q: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Flip signs along a time ``axis`` so consecutive quaternions have a positive dot.
+
+    q and -q are the same rotation; interpolation and finite differences need the
+    representative that is continuous in time.
+    """
+    q = np.array(q, dtype=np.float64, copy=True)
+    q = np.moveaxis(q, axis, 0)
+    if len(q) > 1:
+        dots = np.sum(q[1:] * q[:-1], axis=-1)
+        flips = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
+        q[1:] *= flips[..., None]
+    return np.moveaxis(q, 0, axis)

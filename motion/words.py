@@ -1,0 +1,191 @@
+"""Motion words and seam blending: the one streaming algorithm shared by the live daemon
+and offline ``stylecast restyle`` (so the two produce the same frames).
+
+The walk of a frame, frame indices counted from the start of a performer's stream:
+
+* ``WordCutter`` keeps a ring buffer of input rotations and, every ``hop`` frames, emits
+  a motion word: the last ``WORD_LENGTH`` (60) frames. Word ends lie on the grid
+  e = 59, 59 + hop, 59 + 2*hop, ...
+* The restyler turns each word into a restyled word (elsewhere, possibly late).
+* ``SeamBlender`` renders output frame t at time t + delay (delay >= hop frames). Frame t
+  is served by the first word whose end e >= t. That word is due one frame after its
+  last input frame arrived (e + 1 <= t + delay holds because e <= t + hop - 1), which
+  leaves the model one frame period; a word that is not there when due is late.
+
+The seam (the paper's section 4.5: consecutive words disagree where they meet) is
+removed by an *offset blend*: when serving switches from word A to word B, the blender
+computes the rotation that carries B onto what was just shown,
+offset = shown(t-1) * B(t-1)^-1 (B overlaps A, so B(t-1) exists), applies it on top of B
+and lets it decay to identity with time constant ``decay_frames``. The output is
+continuous at every switch and follows B's own motion afterwards; unlike a crossfade of
+overlapping windows this needs no extra latency, so delay = hop is enough.
+
+A source that stalls is held: its last frame is pushed again each frame, so words keep
+coming and the output stays continuous (offline, the end of a clip is handled the same).
+
+Pass-through and restyled output are mixed by ``mix`` in [0, 1]: it moves towards the
+requested intensity (0 in bypass, when no word is available yet or when a word is late)
+by at most 1 / crossfade_frames per frame, so starting, stopping, late results, bypass
+and intensity changes all fade instead of popping. While no word is available the
+restyled pose is approximated by carrying the last restyle residual (restyled * input^-1)
+onto the live input, so the fade-out has something continuous to fade from.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import rotations as rot
+
+WORD_LENGTH = 60
+
+
+def word_ends(num_frames: int, hop: int, word_length: int = WORD_LENGTH) -> list[int]:
+    """Frame indices at which words end for a stream of ``num_frames`` frames."""
+    return list(range(word_length - 1, num_frames, hop))
+
+
+@dataclass
+class WordCutter:
+    """Ring buffer of input rotations; emits a word every ``hop`` frames."""
+
+    hop: int
+    word_length: int = WORD_LENGTH
+    frames_seen: int = 0
+    _buffer: deque = field(default_factory=deque, repr=False)
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.hop <= self.word_length:
+            raise ValueError(f"hop must be between 1 and {self.word_length} frames, got {self.hop}")
+        self._buffer = deque(maxlen=self.word_length)
+
+    def push(self, rotations: np.ndarray) -> tuple[int, np.ndarray] | None:
+        """Add one frame (J, 4); return (end frame, word (60, J, 4)) when a word completes."""
+        self._buffer.append(np.asarray(rotations, dtype=np.float64))
+        t = self.frames_seen
+        self.frames_seen += 1
+        if t >= self.word_length - 1 and (t - (self.word_length - 1)) % self.hop == 0:
+            return t, rot.canonical_hemisphere(np.stack(self._buffer))
+        return None
+
+
+@dataclass
+class BlendSettings:
+    hop: int
+    delay: int | None = None  # frames between a frame's arrival and its output; >= hop
+    decay_frames: float | None = None  # time constant of the seam offset; 0 disables blending
+    crossfade_frames: int = 30  # pass-through <-> restyled fades
+    word_length: int = WORD_LENGTH
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.hop <= self.word_length:
+            raise ValueError(f"hop must be between 1 and {self.word_length} frames, got {self.hop}")
+        if self.delay is None:
+            self.delay = self.hop
+        if self.delay < self.hop:
+            raise ValueError(f"delay ({self.delay} frames) must be at least the hop ({self.hop} frames)")
+        if self.decay_frames is None:
+            self.decay_frames = float(min(max(self.hop, 4), 15))
+        self.crossfade_frames = max(1, int(self.crossfade_frames))
+
+
+class SeamBlender:
+    """Assembles output frames from restyled words (see the module docstring)."""
+
+    def __init__(self, settings: BlendSettings, num_bones: int):
+        self.settings = settings
+        self.num_bones = num_bones
+        self._words: dict[int, np.ndarray] = {}  # word end -> restyled word
+        self._serving: int | None = None  # end frame of the word currently served
+        self._offset = rot.identity((num_bones,))
+        self._shown_restyled: np.ndarray | None = None  # restyled pose shown at t-1
+        self._residual = rot.identity((num_bones,))  # restyled * input^-1, last known
+        self._decay = 0.0 if not settings.decay_frames else float(np.exp(-1.0 / settings.decay_frames))
+        self.mix = 0.0
+        self.late_frames = 0
+
+    def add_word(self, end: int, restyled: np.ndarray) -> None:
+        self._words[end] = rot.canonical_hemisphere(np.asarray(restyled, dtype=np.float64))
+
+    def serving_word(self, t: int) -> int:
+        """End frame of the word that serves frame t (the first grid end >= t)."""
+        first = self.settings.word_length - 1
+        if t <= first:
+            return first
+        hop = self.settings.hop
+        return first + -(-(t - first) // hop) * hop
+
+    def render(self, t: int, input_rotations: np.ndarray, intensity: float = 1.0, active: bool = True) -> np.ndarray:
+        """Output rotations (J, 4) for frame t, given that frame's input rotations."""
+        s = self.settings
+        end = self.serving_word(t)
+        # A word ending at frame e is usable from time e + 1 on (one frame for inference),
+        # whenever it actually arrived: that keeps live output independent of model speed.
+        due = end + 1 <= t + s.delay
+        word = self._words.get(end) if due else None
+        if due and word is None and active:
+            self.late_frames += 1  # it should have arrived by now: fade out, never stall
+        restyled = self._restyled_pose(t, end, word, input_rotations)
+        target = float(np.clip(intensity, 0.0, 1.0)) if (active and word is not None) else 0.0
+        step = 1.0 / s.crossfade_frames
+        self.mix = min(target, self.mix + step) if target > self.mix else max(target, self.mix - step)
+        self._forget_before(end)
+        if self.mix <= 0.0:
+            return np.array(input_rotations, dtype=np.float64)
+        if self.mix >= 1.0:
+            return restyled
+        return rot.slerp(input_rotations, restyled, self.mix)
+
+    def _restyled_pose(self, t: int, end: int, word: np.ndarray | None, input_rotations: np.ndarray) -> np.ndarray:
+        """The restyled pose for frame t with the seam offset applied, continuous in t."""
+        if word is None:
+            pose = rot.multiply(self._residual, input_rotations)
+            self._serving = None
+        else:
+            index = t - (end - self.settings.word_length + 1)
+            if end != self._serving and self._shown_restyled is not None and self._decay > 0.0 and index > 0:
+                # Switch of word: carry the new word onto what was shown a frame ago.
+                self._offset = rot.multiply(self._shown_restyled, rot.inverse(word[index - 1]))
+            elif self._decay == 0.0:
+                self._offset = rot.identity((self.num_bones,))
+            self._serving = end
+            pose = rot.multiply(self._offset, word[index])
+            self._offset = rot.slerp(rot.identity((self.num_bones,)), self._offset, self._decay)
+            self._residual = rot.multiply(pose, rot.inverse(input_rotations))
+        self._shown_restyled = pose
+        return pose
+
+    def _forget_before(self, end: int) -> None:
+        for old in [e for e in self._words if e < end]:
+            del self._words[old]
+
+
+def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings,
+                   intensity: float = 1.0, batch: int = 64) -> np.ndarray:
+    """Offline: run a whole clip's humanoid rotations (T, J, 4) through the same cutter and
+    blender the daemon uses, with every word restyled in time (never late).
+
+    The end of the clip is treated as a live source that stops: its last frame is held
+    (repeated) until a word covers the final real frame, exactly as the daemon holds a
+    stalled source. ``restyle_words`` maps words (B, 60, J, 4) to restyled words of the
+    same shape; batching does not change the result because words are independent.
+    """
+    T, J = rotations.shape[:2]
+    blender = SeamBlender(settings, J)
+    held = max(blender.serving_word(T - 1) - (T - 1), 0)
+    padded = np.concatenate([rotations, np.repeat(rotations[-1:], held, axis=0)])
+    cutter = WordCutter(settings.hop, settings.word_length)
+    ends, words = [], []
+    for frame in padded:
+        out = cutter.push(frame)
+        if out is not None:
+            ends.append(out[0])
+            words.append(out[1])
+    for i in range(0, len(words), batch):
+        restyled = restyle_words(np.stack(words[i:i + batch]))
+        for end, word in zip(ends[i:i + batch], restyled):
+            blender.add_word(end, word)
+    return np.stack([blender.render(t, rotations[t], intensity) for t in range(T)])

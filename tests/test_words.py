@@ -1,0 +1,113 @@
+"""The shared window-and-blend algorithm (motion/words.py)."""
+
+import numpy as np
+import pytest
+
+from stylecast.motion import rotations as rot
+from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, restyle_stream
+
+J = 22
+
+
+def smooth_motion(frames: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rot.from_euler(np.cumsum(rng.normal(0, 0.6, (frames, J, 3)), axis=0), "ZXY")
+
+
+def biased_restyler(seed: int = 1, degrees: float = 10.0):
+    """A stand-in restyler whose words disagree with each other: each word gets its own
+    constant rotation offset, which makes a hard seam at every word switch."""
+    rng = np.random.default_rng(seed)
+
+    def restyle(words):
+        offset = rot.from_euler(rng.normal(0, degrees, (len(words), 1, J, 3)), "ZXY")
+        return rot.multiply(np.broadcast_to(offset, words.shape), words)
+
+    return restyle
+
+
+def seam_ratio(out: np.ndarray, hop: int, skip: int = 120) -> float:
+    step = rot.angle_between(out[1:], out[:-1]).mean(axis=1)  # step[i]: frame i -> i+1
+    switch = np.zeros(len(step), bool)
+    switch[[e for e in range(59, len(step), hop)]] = True  # frame e+1 is the new word's first
+    keep = np.arange(len(step)) >= skip
+    return step[switch & keep].mean() / step[~switch & keep].mean()
+
+
+def test_cutter_emits_words_on_the_hop_grid():
+    cutter = WordCutter(hop=15)
+    motion = smooth_motion(100)
+    ends = [out[0] for t in range(100) if (out := cutter.push(motion[t])) is not None]
+    assert ends == [59, 74, 89]
+    cutter = WordCutter(hop=15)
+    for t in range(60):
+        out = cutter.push(motion[t])
+    assert out[1].shape == (60, J, 4)
+    assert rot.angle_between(out[1], motion[:60]).max() < 1e-9
+
+
+def test_identity_restyler_is_transparent():
+    motion = smooth_motion(300)
+    out = restyle_stream(motion, lambda w: w, BlendSettings(hop=15))
+    assert rot.angle_between(out, motion).max() < 1e-6
+
+
+@pytest.mark.parametrize("hop", [5, 15, 30])
+def test_offset_blend_removes_the_seam_that_plain_switching_shows(hop):
+    motion = smooth_motion(600)
+    blended = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop))
+    plain = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop, decay_frames=0))
+    assert seam_ratio(blended, hop) < 1.10
+    assert seam_ratio(plain, hop) > 3.0
+
+
+def test_output_follows_the_restyled_words_between_seams():
+    motion = smooth_motion(400)
+    constant = rot.from_euler(np.full((J, 3), 20.0), "ZXY")
+    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), BlendSettings(hop=15))
+    expected = rot.multiply(np.broadcast_to(constant, motion.shape), motion)
+    # The seam offset left by the fade-in decays exponentially (time constant 15 frames).
+    assert rot.angle_between(out[300:], expected[300:]).max() < 1e-4
+
+
+def test_start_is_pass_through_then_fades_in_without_a_jump():
+    motion = smooth_motion(200)
+    settings = BlendSettings(hop=15, crossfade_frames=20)
+    constant = rot.from_euler(np.full((J, 3), 30.0), "ZXY")
+    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), settings)
+    first_due = 60 - settings.delay  # the first word is due one frame after frame 59
+    assert rot.angle_between(out[:first_due], motion[:first_due]).max() < 1e-9
+    jumps = rot.angle_between(out[1:], out[:-1]).max(axis=1)
+    natural = rot.angle_between(motion[1:], motion[:-1]).max(axis=1)
+    assert (jumps - natural).max() < 52.0 / 20 + 1.0  # 30 deg about 3 axes (~52 deg) over 20 frames
+
+
+def test_late_word_fades_to_pass_through_and_back_without_pop():
+    motion = smooth_motion(400)
+    settings = BlendSettings(hop=15, crossfade_frames=10)
+    cutter, blender = WordCutter(15), SeamBlender(settings, J)
+    constant = rot.from_euler(np.full((J, 3), 25.0), "ZXY")
+    out = []
+    for now in range(400 + settings.delay):  # as live: frame t is rendered at time t + delay
+        if now < 400:
+            made = cutter.push(motion[now])
+            if made is not None and not 150 <= made[0] <= 200:  # these words never arrive
+                blender.add_word(made[0], rot.multiply(np.broadcast_to(constant, made[1].shape), made[1]))
+        t = now - settings.delay
+        if 0 <= t < 400 - settings.hop:
+            out.append(blender.render(t, motion[t]))
+    out = np.stack(out)
+    assert blender.late_frames > 0
+    steps = rot.angle_between(out[1:], out[:-1]).max(axis=1)
+    natural = rot.angle_between(motion[1:len(out)], motion[:len(out) - 1]).max(axis=1)
+    assert (steps - natural).max() < 45.0 / 10 + 1.0
+    assert rot.angle_between(out[190], motion[190]).max() < 1e-6  # faded fully to pass-through
+    expected = rot.multiply(np.broadcast_to(constant, motion.shape), motion)
+    assert rot.angle_between(out[330:], expected[330:len(out)]).max() < 1e-3  # and back to restyled
+
+
+def test_settings_are_validated():
+    with pytest.raises(ValueError, match="hop"):
+        BlendSettings(hop=0)
+    with pytest.raises(ValueError, match="delay"):
+        BlendSettings(hop=15, delay=5)

@@ -1,0 +1,1 @@
+"""stylecast.viewer — see ARCHITECTURE.md in the README."""
