@@ -93,15 +93,22 @@ class BlendSettings:
 
 
 class SeamBlender:
-    """Assembles output frames from restyled words (see the module docstring)."""
+    """Assembles output frames from restyled words (see the module docstring).
+
+    ``render_block`` renders consecutive frames at once: within a run of frames served by
+    one word, the seam offset is a geodesic power (slerp from identity to the offset,
+    s = decay ** n) and the mix a clipped ramp, both closed-form, so a run costs a few
+    vectorised operations instead of a Python step per frame. The daemon renders blocks
+    of one frame, ``restyle`` whole clips, through the same code.
+    """
 
     def __init__(self, settings: BlendSettings, num_bones: int):
         self.settings = settings
         self.num_bones = num_bones
         self._words: dict[int, np.ndarray] = {}  # word end -> restyled word
         self._serving: int | None = None  # end frame of the word currently served
-        self._offset = rot.identity((num_bones,))
-        self._shown_restyled: np.ndarray | None = None  # restyled pose shown at t-1
+        self._offset = rot.identity((num_bones,))  # seam offset, before this frame's decay
+        self._shown: np.ndarray | None = None  # restyled pose shown for the previous frame
         self._residual = rot.identity((num_bones,))  # restyled * input^-1, last known
         self._decay = 0.0 if not settings.decay_frames else float(np.exp(-1.0 / settings.decay_frames))
         self.mix = 0.0
@@ -120,43 +127,68 @@ class SeamBlender:
 
     def render(self, t: int, input_rotations: np.ndarray, intensity: float = 1.0, active: bool = True) -> np.ndarray:
         """Output rotations (J, 4) for frame t, given that frame's input rotations."""
-        s = self.settings
-        end = self.serving_word(t)
-        # A word ending at frame e is usable from time e + 1 on (one frame for inference),
-        # whenever it actually arrived: that keeps live output independent of model speed.
-        due = end + 1 <= t + s.delay
-        word = self._words.get(end) if due else None
-        if due and word is None and active:
-            self.late_frames += 1  # it should have arrived by now: fade out, never stall
-        restyled = self._restyled_pose(t, end, word, input_rotations)
-        target = float(np.clip(intensity, 0.0, 1.0)) if (active and word is not None) else 0.0
-        step = 1.0 / s.crossfade_frames
-        self.mix = min(target, self.mix + step) if target > self.mix else max(target, self.mix - step)
-        self._forget_before(end)
-        if self.mix <= 0.0:
-            return np.array(input_rotations, dtype=np.float64)
-        if self.mix >= 1.0:
-            return restyled
-        return rot.slerp(input_rotations, restyled, self.mix)
+        return self.render_block(t, np.asarray(input_rotations)[None], intensity, active)[0]
 
-    def _restyled_pose(self, t: int, end: int, word: np.ndarray | None, input_rotations: np.ndarray) -> np.ndarray:
-        """The restyled pose for frame t with the seam offset applied, continuous in t."""
+    def render_block(self, t0: int, inputs: np.ndarray, intensity: float = 1.0, active: bool = True) -> np.ndarray:
+        """Output rotations (n, J, 4) for frames t0 .. t0+n-1 given their inputs (n, J, 4)."""
+        inputs = np.asarray(inputs, dtype=np.float64)
+        out = np.empty_like(inputs)
+        t, n = t0, len(inputs)
+        while t < t0 + n:
+            end = self.serving_word(t)
+            run = min(end, t0 + n - 1) - t + 1  # frames served by this word in the block
+            # A word ending at frame e is due from time e + 1 (one frame for inference) and
+            # used only then, whenever it actually arrived: live output does not depend on
+            # model speed. The first frames of a stream come before the first word is due.
+            first_due = end + 1 - self.settings.delay
+            if t < first_due:
+                run = min(run, first_due - t)
+                word = None
+            else:
+                word = self._words.get(end)
+                if word is None and active:
+                    self.late_frames += run  # should have arrived: fade out, never stall
+            block = slice(t - t0, t - t0 + run)
+            restyled = self._restyled_run(t, end, word, inputs[block])
+            out[block] = self._mix_run(inputs[block], restyled, word is not None and active, intensity)
+            t += run
+        self._forget_before(self.serving_word(t0 + n - 1))
+        return out
+
+    def _restyled_run(self, t: int, end: int, word: np.ndarray | None, inputs: np.ndarray) -> np.ndarray:
+        """Restyled poses for a run of frames from one word, seam offset applied."""
+        n = len(inputs)
         if word is None:
-            pose = rot.multiply(self._residual, input_rotations)
             self._serving = None
+            poses = rot.multiply(self._residual, inputs)
         else:
             index = t - (end - self.settings.word_length + 1)
-            if end != self._serving and self._shown_restyled is not None and self._decay > 0.0 and index > 0:
-                # Switch of word: carry the new word onto what was shown a frame ago.
-                self._offset = rot.multiply(self._shown_restyled, rot.inverse(word[index - 1]))
-            elif self._decay == 0.0:
+            if self._decay == 0.0:
                 self._offset = rot.identity((self.num_bones,))
+            elif end != self._serving and self._shown is not None and index > 0:
+                # Switch of word: carry the new word onto what was shown a frame ago.
+                self._offset = rot.multiply(self._shown, rot.inverse(word[index - 1]))
             self._serving = end
-            pose = rot.multiply(self._offset, word[index])
-            self._offset = rot.slerp(rot.identity((self.num_bones,)), self._offset, self._decay)
-            self._residual = rot.multiply(pose, rot.inverse(input_rotations))
-        self._shown_restyled = pose
-        return pose
+            powers = self._decay ** np.arange(n)  # offset decays by one step per frame
+            offsets = rot.slerp(rot.IDENTITY, self._offset[None], np.repeat(powers[:, None], self.num_bones, 1))
+            poses = rot.multiply(offsets, word[index:index + n])
+            self._offset = rot.slerp(rot.IDENTITY, self._offset, np.full(self.num_bones, self._decay ** n))
+            self._residual = rot.multiply(poses[-1], rot.inverse(inputs[-1]))
+        self._shown = poses[-1]
+        return poses
+
+    def _mix_run(self, inputs: np.ndarray, restyled: np.ndarray, available: bool, intensity: float) -> np.ndarray:
+        """Move ``mix`` towards its target by at most one crossfade step per frame."""
+        target = float(np.clip(intensity, 0.0, 1.0)) if available else 0.0
+        step = 1.0 / self.settings.crossfade_frames
+        ramp = step * np.arange(1, len(inputs) + 1)
+        mix = np.minimum(target, self.mix + ramp) if target > self.mix else np.maximum(target, self.mix - ramp)
+        self.mix = float(mix[-1])
+        if np.all(mix >= 1.0):
+            return restyled
+        if np.all(mix <= 0.0):
+            return inputs.copy()
+        return rot.slerp(inputs, restyled, np.repeat(mix[:, None], self.num_bones, 1))
 
     def _forget_before(self, end: int) -> None:
         for old in [e for e in self._words if e < end]:
@@ -188,4 +220,4 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
         restyled = restyle_words(np.stack(words[i:i + batch]))
         for end, word in zip(ends[i:i + batch], restyled):
             blender.add_word(end, word)
-    return np.stack([blender.render(t, rotations[t], intensity) for t in range(T)])
+    return blender.render_block(0, rotations, intensity)

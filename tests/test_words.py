@@ -111,3 +111,20 @@ def test_settings_are_validated():
         BlendSettings(hop=0)
     with pytest.raises(ValueError, match="delay"):
         BlendSettings(hop=15, delay=5)
+
+
+def test_frame_by_frame_rendering_equals_block_rendering():
+    """The daemon renders one frame per tick, restyle whole clips: same frames."""
+    motion = smooth_motion(500)
+    settings = BlendSettings(hop=10)
+    block = restyle_stream(motion, biased_restyler(seed=4), settings)
+    restyle = biased_restyler(seed=4)
+    cutter, blender, out = WordCutter(10), SeamBlender(settings, J), []
+    for now in range(500 + settings.delay):
+        if now < 500:
+            made = cutter.push(motion[now])
+            if made is not None:
+                blender.add_word(made[0], restyle(made[1][None])[0])
+        if 0 <= now - settings.delay < 500 - settings.hop:
+            out.append(blender.render(now - settings.delay, motion[now - settings.delay]))
+    assert rot.angle_between(np.stack(out), block[:len(out)]).max() < 1e-9
