@@ -8,8 +8,10 @@ How the T-pose reference is found (a BVH rest pose, all channels zero, need not 
 T-pose; in the Bandai files every bone points along its local X axis):
 
 1. The source joint mapped to Hips is turned so that its "up" (towards the spine) is +Y
-   and its "left" (right hip towards left hip) is +X: this fixes the facing.
-2. Every other mapped joint, top-down, is swung by the smallest rotation that points its
+   and its "left" (right hip towards left hip) is +X: this fixes the facing. The spine,
+   neck and head joints likewise get "up" along the spine and "left" along the line of
+   the shoulders, which fixes their twist (a rig convention bone directions cannot show).
+2. Every other mapped joint (the limbs), top-down, is swung by the smallest rotation that points its
    bone (towards the next mapped joint of its chain) along the canonical T-pose
    direction: up the spine, out along +/-X for the arms, down for the legs, forward and
    down for the feet. A bone that must turn by 180 degrees turns about the body's forward
@@ -31,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from . import rotations as rot
 from .clip import Clip, forward_kinematics
@@ -63,14 +66,19 @@ HUMANOID_HIERARCHY: tuple[tuple[str, str | None], ...] = (
     ("RightFoot", "RightLowerLeg"),
     ("RightToes", "RightFoot"),
 )
+# Bumped whenever the mapping of a given source motion to humanoid rotations changes, so
+# caches of retargeted data (models/data.py) and checkpoints can tell.
+RETARGET_VERSION = 2
+
 HUMANOID_BONES: tuple[str, ...] = tuple(b for b, _ in HUMANOID_HIERARCHY)
 HUMANOID_PARENTS: tuple[int, ...] = tuple(
     -1 if p is None else HUMANOID_BONES.index(p) for _, p in HUMANOID_HIERARCHY
 )
 
-# Feet point forward and this far down in the T-pose: a standing foot (ankle above the
-# ball of the foot) then reads as identity, as it does in a VRM model's bind pose.
-FOOT_PITCH_DEG = 30.0
+# Feet point forward and this far down in the T-pose, so a standing foot (ankle above the
+# ball of the foot) reads as identity, as in a VRM model's bind pose. 40 degrees is the
+# median ankle-to-toe pitch of standing frames in the Bandai data (39.6).
+FOOT_PITCH_DEG = 40.0
 _FOOT_DIR = (0.0, -np.sin(np.radians(FOOT_PITCH_DEG)), np.cos(np.radians(FOOT_PITCH_DEG)))
 UP, LEFT, FORWARD = np.eye(3)[1], np.eye(3)[0], np.eye(3)[2]
 
@@ -179,6 +187,9 @@ class Retarget:
     tpose_world: np.ndarray  # (J_src, 4): source joints' world rotations in the T-pose
     tpose_positions: np.ndarray  # (J_src, 3): source joints' world positions in the T-pose
     humanoid: Skeleton  # canonical bones, T-pose rest, the source's bone lengths
+    rest_offsets: np.ndarray  # the source's bone offsets the T-pose was built from
+    matched: dict  # humanoid bone -> source joint index
+    twists: dict  # limb bone -> quarter-turn twist convention (degrees)
 
     @classmethod
     def build(cls, source: Skeleton, user_map: dict[str, str] | None = None,
@@ -190,20 +201,29 @@ class Retarget:
                 f"cannot map skeleton to the humanoid: no joint found for {', '.join(missing)}; "
                 f"pass --map FILE with a JSON table such as {{\"{source.names[min(1, len(source) - 1)]}\": \"Hips\"}}")
         offsets = source.offsets if rest_offsets is None else np.asarray(rest_offsets, float)
+        return cls._solve(source, matched, offsets, {})
+
+    @classmethod
+    def _solve(cls, source: Skeleton, matched: dict, offsets: np.ndarray, twists: dict) -> "Retarget":
         bone_source = tuple(matched.get(b, -1) for b in HUMANOID_BONES)
-        tpose_world, tpose_pos = _solve_tpose(source, offsets, matched)
+        tpose_world, tpose_pos = _solve_tpose(source, offsets, matched, twists)
         humanoid = _humanoid_skeleton(source, bone_source, tpose_world, tpose_pos)
-        return cls(source, bone_source, tpose_world, tpose_pos, humanoid)
+        return cls(source, bone_source, tpose_world, tpose_pos, humanoid, offsets, dict(matched), dict(twists))
+
+    def with_twists(self, twists: dict[str, float]) -> "Retarget":
+        return self._solve(self.source, self.matched, self.rest_offsets, twists)
 
     @classmethod
     def for_clip(cls, clip: Clip, user_map: dict[str, str] | None = None) -> "Retarget":
         """Like ``build``, with bone lengths taken from the clip's animated translations
-        where it has them (the median, robust to a stray frame)."""
+        where it has them (the median, robust to a stray frame), and each limb's twist
+        convention read from the motion (``calibrate_twists``)."""
         offsets = None
         if clip.translations is not None:
             offsets = np.median(clip.translations, axis=0)
             offsets[0] = clip.skeleton.offsets[0]
-        return cls.build(clip.skeleton, user_map, offsets)
+        retarget = cls.build(clip.skeleton, user_map, offsets)
+        return retarget.with_twists(calibrate_twists(retarget, clip))
 
     @property
     def mapped(self) -> dict[str, str]:
@@ -315,41 +335,131 @@ def _aim_vector(bone: str, j: int, matched: dict[str, int], source: Skeleton, re
     return None
 
 
-def _hips_frame(up: np.ndarray, left: np.ndarray) -> np.ndarray:
+def _body_frame(up: np.ndarray, left: np.ndarray) -> np.ndarray:
     """The rotation taking the rest pose's (up, left) body axes onto (+Y, +X)."""
     up = up / np.linalg.norm(up)
     left = left - np.dot(left, up) * up
     left = left / np.linalg.norm(left)
     fwd = np.cross(left, up)
     rest_axes = np.stack([left, up, fwd], axis=1)  # columns: body axes in rest space
-    from scipy.spatial.transform import Rotation
-
     return Rotation.from_matrix(rest_axes.T).as_quat()  # maps rest body axes to world X, Y, Z
 
 
-def _solve_tpose(source: Skeleton, offsets: np.ndarray, matched: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:
+_SPINE_CHAIN = ("Spine", "Chest", "UpperChest", "Neck", "Head")
+# Limb joints whose twist convention is read from the motion: clavicles and legs stay
+# near their T-pose direction in everyday motion, so their twist shows. Arms do not:
+# raising or waving an arm turns it by up to a quarter turn for real, so the arm chain
+# takes its frame from its (calibrated) clavicle.
+CALIBRATED_BONES = tuple(f"{side}{b}" for side in ("Left", "Right")
+                         for b in ("Shoulder", "UpperLeg", "LowerLeg", "Foot", "Toes"))
+
+
+def _lateral_axes(matched: dict[str, int], rest: np.ndarray) -> dict[str, np.ndarray]:
+    """Rest-pose "left" axes: the hips' from the legs, the spine's from the shoulders
+    (or the upper arms), falling back to the hips' when a rig has neither."""
+    hips_left = rest[matched["LeftUpperLeg"]] - rest[matched["RightUpperLeg"]]
+    for left, right in (("LeftShoulder", "RightShoulder"), ("LeftUpperArm", "RightUpperArm")):
+        if left in matched and right in matched:
+            spine_left = rest[matched[left]] - rest[matched[right]]
+            if np.linalg.norm(spine_left) > 1e-6:
+                break
+    else:
+        spine_left = hips_left
+    return {"Hips": hips_left, **{bone: spine_left for bone in _SPINE_CHAIN}}
+
+
+def _solve_tpose(source: Skeleton, offsets: np.ndarray, matched: dict[str, int],
+                 twists: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """World rotation of every source joint in the canonical T-pose (see module doc).
+
+    The hips and spine joints get a full frame from two rest-pose directions (along the
+    bone, and the body's left-right line), because the twist of a rig's spine joints
+    about their own axis is a convention of the rig that bone directions cannot reveal
+    (the Bandai spine is turned 90 degrees from its hips). Limbs are swung from their
+    parent's frame.
+    """
     rest = _rest_positions(source.parents, offsets)
     end_sites = {j: np.asarray(o) for j, o in source.end_sites}
+    lateral = _lateral_axes(matched, rest)
     bone_of = {j: b for b, j in matched.items()}
     world = np.empty((len(source), 4))
     for j, p in enumerate(source.parents):
         inherited = rot.IDENTITY if p < 0 else world[p]
         bone = bone_of.get(j)
-        if bone == "Hips":
-            up = _aim_vector("Hips", j, matched, source, rest, end_sites)
-            left = rest[matched["LeftUpperLeg"]] - rest[matched["RightUpperLeg"]]
-            world[j] = _hips_frame(up, left)
-            continue
         v = None if bone is None else _aim_vector(bone, j, matched, source, rest, end_sites)
-        if v is None:
+        if bone in lateral and v is not None and np.linalg.norm(np.cross(v, lateral[bone])) > 1e-6:
+            world[j] = _body_frame(v, lateral[bone])
+        elif v is None:
             world[j] = inherited
-            continue
-        current = rot.apply(inherited, v)
-        world[j] = rot.multiply(rot.swing(current, TPOSE_DIRECTION[bone], FORWARD), inherited)
+        else:
+            current = rot.apply(inherited, v)
+            world[j] = rot.multiply(rot.swing(current, TPOSE_DIRECTION[bone], FORWARD), inherited)
+            if twists.get(bone):
+                world[j] = rot.multiply(_twist(bone, twists[bone]), world[j])
     positions = np.zeros((len(source), 3))
     for j, p in enumerate(source.parents):
         positions[j] = offsets[j] if p < 0 else positions[p] + rot.apply(world[p], offsets[j])
     return world, positions
+
+
+def _twist(bone: str, degrees: float) -> np.ndarray:
+    """A turn about the bone's own T-pose direction (it keeps the bone's aim)."""
+    axis = np.asarray(TPOSE_DIRECTION[bone]) / np.linalg.norm(TPOSE_DIRECTION[bone])
+    return Rotation.from_rotvec(np.radians(degrees) * axis).as_quat()
+
+
+def mean_twist(local: np.ndarray, bone: str, max_swing_deg: float = 45.0) -> float | None:
+    """Circular mean (degrees) of the twist of local rotations (T, 4) about the bone's
+    T-pose direction (swing-twist decomposition L = swing * twist), or None when the
+    motion does not show it reliably.
+
+    Twist is only well defined while the swing is small: an arm hanging 80 degrees
+    from the T-pose splits into swing and twist differently with every small change.
+    So only frames with the bone within ``max_swing_deg`` of its T-pose direction
+    count, and the answer must be concentrated and near a quarter turn.
+    """
+    axis = np.asarray(TPOSE_DIRECTION[bone]) / np.linalg.norm(TPOSE_DIRECTION[bone])
+    swing_cos = np.sum(rot.apply(local, axis) * axis, axis=-1)
+    near = local[swing_cos > np.cos(np.radians(max_swing_deg))]
+    if len(near) < max(5, 0.5 * len(local)):
+        return None
+    phasors = np.exp(1j * 2.0 * np.arctan2(near[:, :3] @ axis, near[:, 3]))
+    mean = np.mean(phasors)
+    degrees = float(np.degrees(np.angle(mean)))
+    off_quarter = abs(degrees - 90.0 * round(degrees / 90.0))
+    if abs(mean) < 0.5 or off_quarter > 30.0:
+        return None
+    return degrees
+
+
+def calibrate_twists(retarget: "Retarget", clip: Clip, max_frames: int = 240) -> dict[str, float]:
+    """Each limb joint's twist convention, in quarter turns, read from the motion.
+
+    A rig may turn a limb joint's frame about the bone by a multiple of 90 degrees
+    relative to its parent (the Bandai rig turns both clavicles by -90 and the right
+    thigh by 180); neither the rest pose nor bone directions show it, but the motion
+    does: the limb's mean twist about its own axis sits near that multiple instead of
+    near zero. Parents are calibrated first (CALIBRATED_BONES is in hierarchy order per
+    side), since a parent's turn changes its children's twist. Rounding to quarter
+    turns keeps ordinary motion from moving the reference; the result for every Bandai
+    clip sampled is the same (both clavicles -90, right thigh 180).
+    """
+    step = max(1, clip.num_frames // max_frames)
+    sample = clip.replace(
+        rotations=clip.rotations[::step], root_positions=clip.root_positions[::step],
+        translations=None if clip.translations is None else clip.translations[::step])
+    twists: dict[str, float] = {}
+    current = retarget
+    for bone in CALIBRATED_BONES:
+        h = HUMANOID_BONES.index(bone)
+        if current.bone_source[h] < 0:
+            continue
+        twist = mean_twist(current.to_humanoid(sample).rotations[:, h], bone)
+        quarter = 0 if twist is None else round(twist / 90.0) % 4
+        if quarter:
+            twists[bone] = 90.0 * quarter
+            current = current.with_twists(twists)
+    return twists
 
 
 def _humanoid_skeleton(source: Skeleton, bone_source: tuple[int, ...], tpose_world: np.ndarray,

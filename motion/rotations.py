@@ -126,20 +126,23 @@ def angle_between(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
 def swing(from_dir: np.ndarray, to_dir: np.ndarray, fallback_axis: np.ndarray) -> np.ndarray:
     """The smallest rotation turning ``from_dir`` onto ``to_dir`` (both 3-vectors).
 
-    When the two are opposite the smallest rotation is not unique; it turns 180 degrees
-    about ``fallback_axis`` (made perpendicular to ``from_dir``) so callers can keep a
-    limb in a chosen plane instead of flipping it at random.
+    Near opposite directions the smallest rotation's axis is numerically arbitrary (a
+    rest pose with a leg pointing up along the spine would flip the knee at random).
+    There the rotation is built as 180 degrees about ``fallback_axis`` (made
+    perpendicular to ``from_dir``) followed by the small remaining swing, so callers keep
+    a limb in a chosen plane.
     """
     a = np.asarray(from_dir, np.float64) / np.linalg.norm(from_dir)
     b = np.asarray(to_dir, np.float64) / np.linalg.norm(to_dir)
-    axis = np.cross(a, b)
-    s, c = np.linalg.norm(axis), float(np.dot(a, b))
-    if s < 1e-9:
-        if c > 0:
-            return IDENTITY.copy()
+    if np.dot(a, b) < -0.9:  # within ~25 degrees of opposite
         f = np.asarray(fallback_axis, np.float64)
         f = f - np.dot(f, a) * a
-        return Rotation.from_rotvec(np.pi * f / np.linalg.norm(f)).as_quat()
+        half_turn = Rotation.from_rotvec(np.pi * f / np.linalg.norm(f)).as_quat()
+        return multiply(swing(apply(half_turn, a), b, fallback_axis), half_turn)
+    axis = np.cross(a, b)
+    s, c = np.linalg.norm(axis), float(np.dot(a, b))
+    if s < 1e-12:
+        return IDENTITY.copy()
     return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_quat()
 
 

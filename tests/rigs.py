@@ -3,6 +3,9 @@
 import numpy as np
 
 from stylecast.motion import Skeleton
+from stylecast.motion.humanoid import FOOT_PITCH_DEG
+
+TOE_FORWARD = 6.0 / np.tan(np.radians(FOOT_PITCH_DEG))  # toe 6 cm below the ankle
 
 
 def mocap_tpose_skeleton() -> Skeleton:
@@ -16,9 +19,9 @@ def mocap_tpose_skeleton() -> Skeleton:
         ("RightShoulder", "Spine1", (-3, 20, 0)), ("RightArm", "RightShoulder", (-15, 0, 0)),
         ("RightForeArm", "RightArm", (-28, 0, 0)), ("RightHand", "RightForeArm", (-25, 0, 0)),
         ("LeftUpLeg", "Hips", (9, -5, 0)), ("LeftLeg", "LeftUpLeg", (0, -42, 0)),
-        ("LeftFoot", "LeftLeg", (0, -40, 0)), ("LeftToeBase", "LeftFoot", (0, -6, 10.392305)),
+        ("LeftFoot", "LeftLeg", (0, -40, 0)), ("LeftToeBase", "LeftFoot", (0, -6, TOE_FORWARD)),
         ("RightUpLeg", "Hips", (-9, -5, 0)), ("RightLeg", "RightUpLeg", (0, -42, 0)),
-        ("RightFoot", "RightLeg", (0, -40, 0)), ("RightToeBase", "RightFoot", (0, -6, 10.392305)),
+        ("RightFoot", "RightLeg", (0, -40, 0)), ("RightToeBase", "RightFoot", (0, -6, TOE_FORWARD)),
     ]
     return _skeleton(joints)
 
