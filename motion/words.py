@@ -8,17 +8,19 @@ The walk of a frame, frame indices counted from the start of a performer's strea
   e = 59, 59 + hop, 59 + 2*hop, ...
 * The restyler turns each word into a restyled word (elsewhere, possibly late).
 * ``SeamBlender`` renders output frame t at time t + delay (delay >= hop frames). Frame t
-  is served by the first word whose end e >= t. That word is due one frame after its
-  last input frame arrived (e + 1 <= t + delay holds because e <= t + hop - 1), which
-  leaves the model one frame period; a word that is not there when due is late.
+  is served by the first word whose end e >= t (so e <= t + hop - 1). The first frame a
+  word serves, e + 1 - hop, is rendered at e + 1 + (delay - hop): the model has
+  delay - hop + 1 frame periods per word, and a word not there by then is late.
 
 The seam (the paper's section 4.5: consecutive words disagree where they meet) is
 removed by an *offset blend*: when serving switches from word A to word B, the blender
 computes the rotation that carries B onto what was just shown,
 offset = shown(t-1) * B(t-1)^-1 (B overlaps A, so B(t-1) exists), applies it on top of B
-and lets it decay to identity with time constant ``decay_frames``. The output is
-continuous at every switch and follows B's own motion afterwards; unlike a crossfade of
-overlapping windows this needs no extra latency, so delay = hop is enough.
+and lets a critically damped spring (time constant ``decay_frames``) pull it back to
+identity, keeping its rate of change across switches. The output is continuous in pose
+and in velocity at every switch and settles onto B's own motion; unlike a crossfade of
+overlapping windows this needs no extra latency, so delay = hop is enough. At hop 1 the
+switch comes every frame and the spring acts as a smoothing filter on the words.
 
 A source that stalls is held: its last frame is pushed again each frame, so words keep
 coming and the output stays continuous (offline, the end of a clip is handled the same).
@@ -37,6 +39,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from . import rotations as rot
 
@@ -92,6 +95,25 @@ class BlendSettings:
         self.crossfade_frames = max(1, int(self.crossfade_frames))
 
 
+def _spring(offset: np.ndarray, velocity: np.ndarray, omega: float, n: int):
+    """A critically damped spring pulling ``offset`` to zero, n frames on, in closed form:
+    x(k) = (x0 + (v0 + w x0) k) e^(-w k). Returns x(1..n) (n, J, 3), x(n) and x'(n)."""
+    k = np.arange(1, n + 1, dtype=np.float64)[:, None, None]
+    c2 = velocity + omega * offset
+    fade = np.exp(-omega * k)
+    x = (offset + c2 * k) * fade
+    v = (velocity - omega * c2 * k) * fade
+    return x, x[-1].copy(), v[-1].copy()
+
+
+def _log(q: np.ndarray) -> np.ndarray:
+    return Rotation.from_quat(q).as_rotvec()
+
+
+def _exp(v: np.ndarray) -> np.ndarray:
+    return Rotation.from_rotvec(v.reshape(-1, 3)).as_quat().reshape(*v.shape[:-1], 4)
+
+
 class SeamBlender:
     """Assembles output frames from restyled words (see the module docstring).
 
@@ -107,10 +129,13 @@ class SeamBlender:
         self.num_bones = num_bones
         self._words: dict[int, np.ndarray] = {}  # word end -> restyled word
         self._serving: int | None = None  # end frame of the word currently served
-        self._offset = rot.identity((num_bones,))  # seam offset, before this frame's decay
+        # The seam offset as a rotation vector (J, 3) and its change per frame, at the
+        # previous frame; a critically damped spring pulls it to zero.
+        self._offset = np.zeros((num_bones, 3))
+        self._offset_velocity = np.zeros((num_bones, 3))
         self._shown: np.ndarray | None = None  # restyled pose shown for the previous frame
         self._residual = rot.identity((num_bones,))  # restyled * input^-1, last known
-        self._decay = 0.0 if not settings.decay_frames else float(np.exp(-1.0 / settings.decay_frames))
+        self._omega = 0.0 if not settings.decay_frames else 1.0 / float(settings.decay_frames)
         self.mix = 0.0
         self.late_frames = 0
 
@@ -137,10 +162,10 @@ class SeamBlender:
         while t < t0 + n:
             end = self.serving_word(t)
             run = min(end, t0 + n - 1) - t + 1  # frames served by this word in the block
-            # A word ending at frame e is due from time e + 1 (one frame for inference) and
-            # used only then, whenever it actually arrived: live output does not depend on
-            # model speed. The first frames of a stream come before the first word is due.
-            first_due = end + 1 - self.settings.delay
+            # A word ending at frame e serves frames from e + 1 - hop on, which are rendered
+            # from time e + 1 + (delay - hop) on: the model has delay - hop + 1 frame
+            # periods. Only the first frames of a stream come before the first word.
+            first_due = end + 1 - self.settings.hop
             if t < first_due:
                 run = min(run, first_due - t)
                 word = None
@@ -157,22 +182,21 @@ class SeamBlender:
 
     def _restyled_run(self, t: int, end: int, word: np.ndarray | None, inputs: np.ndarray) -> np.ndarray:
         """Restyled poses for a run of frames from one word, seam offset applied."""
-        n = len(inputs)
         if word is None:
             self._serving = None
             poses = rot.multiply(self._residual, inputs)
         else:
             index = t - (end - self.settings.word_length + 1)
-            if self._decay == 0.0:
-                self._offset = rot.identity((self.num_bones,))
+            if self._omega == 0.0:
+                self._offset[:] = 0.0
             elif end != self._serving and self._shown is not None and index > 0:
                 # Switch of word: carry the new word onto what was shown a frame ago.
-                self._offset = rot.multiply(self._shown, rot.inverse(word[index - 1]))
+                # The offset's velocity carries over, so the motion does not kink either.
+                self._offset = _log(rot.multiply(self._shown, rot.inverse(word[index - 1])))
             self._serving = end
-            powers = self._decay ** np.arange(n)  # offset decays by one step per frame
-            offsets = rot.slerp(rot.IDENTITY, self._offset[None], np.repeat(powers[:, None], self.num_bones, 1))
-            poses = rot.multiply(offsets, word[index:index + n])
-            self._offset = rot.slerp(rot.IDENTITY, self._offset, np.full(self.num_bones, self._decay ** n))
+            offsets, self._offset, self._offset_velocity = _spring(
+                self._offset, self._offset_velocity, self._omega, len(inputs))
+            poses = rot.multiply(_exp(offsets), word[index:index + len(inputs)])
             self._residual = rot.multiply(poses[-1], rot.inverse(inputs[-1]))
         self._shown = poses[-1]
         return poses

@@ -61,13 +61,16 @@ def test_offset_blend_removes_the_seam_that_plain_switching_shows(hop):
     assert seam_ratio(plain, hop) > 3.0
 
 
-def test_output_follows_the_restyled_words_between_seams():
+@pytest.mark.parametrize("hop", [1, 15])
+def test_output_follows_the_restyled_words_between_seams(hop):
+    """Also at hop 1, where a word switch comes every frame: the offset must still
+    settle, or the output would keep the input's pose and only borrow the words' motion."""
     motion = smooth_motion(400)
     constant = rot.from_euler(np.full((J, 3), 20.0), "ZXY")
-    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), BlendSettings(hop=15))
+    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), BlendSettings(hop=hop))
     expected = rot.multiply(np.broadcast_to(constant, motion.shape), motion)
-    # The seam offset left by the fade-in decays exponentially (time constant 15 frames).
-    assert rot.angle_between(out[300:], expected[300:]).max() < 1e-4
+    # The seam offset left by the fade-in settles exponentially (time constant <= 15 frames).
+    assert rot.angle_between(out[300:], expected[300:]).max() < 1e-3
 
 
 def test_start_is_pass_through_then_fades_in_without_a_jump():
