@@ -1,0 +1,431 @@
+"""Daemon benchmarks: latency, capacity, CPU cost, seam ratio. Prints tables; not a test.
+
+    python bench/bench_daemon.py                # everything (a few minutes)
+    python bench/bench_daemon.py latency seams  # a subset: latency capacity cpu seams
+
+Latency: one performer replayed at 60 fps whose hips x position encodes the frame index;
+the daemon sends VMC over loopback to a receiver *process* (so its timestamps do not
+wait for the daemon's GIL) that decodes the index and stamps the arrival with the
+system-wide monotonic clock. Latency = receive time - the moment input frame i arrived
+(t0 + i/60 on the same clock). The daemon's own figure (arrival -> sendto returned) is
+shown beside it.
+
+Capacity (hop 15): N performers, each to its own port, drained by a receiver process;
+N grows until a run drops an output tick (a tick that started more than a whole frame
+period late) or shows late words. CPU: process CPU time per performer-second for bypass
+and restyle, against a plain python-osc relay (parse every datagram with python-osc,
+forward the same bytes) fed the daemon's own packets at the same rate.
+
+Seams: the paper's d_t (Euclidean distance of a bone's Euler angles, scaled to [-1, 1],
+between consecutive frames), mean at frames where the served word changes over mean
+elsewhere, on shared Bandai clips, for the live output at hop 15 and hop 1 and for a
+non-overlapping baseline (hop 60, no blending). At hop 1 the served word changes on
+every frame, so the boundaries counted are those of the 60-frame grid (frames 60k).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import platform
+import socket
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = REPO.parent / "shared" / "data" / "bandai"
+CHECKPOINT = REPO / "models" / "checkpoints" / "normal2exhausted.safetensors"
+FPS = 60.0
+
+
+# ----------------------------------------------------------------------------- helpers
+
+def machine_info() -> str:
+    cpu = "?"
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    import numpy
+    import scipy
+
+    load = os.getloadavg() if hasattr(os, "getloadavg") else ("?",)
+    return (f"machine: {cpu}, {os.cpu_count()} logical CPUs, load avg {load[0]:.2f} (shared box), "
+            f"{platform.system()} {platform.release()}, Python {platform.python_version()}, "
+            f"numpy {numpy.__version__}, scipy {scipy.__version__}")
+
+
+def restyler():
+    from stylecast.daemon.restylers import StandInRestyler
+
+    if CHECKPOINT.exists():
+        from stylecast.models.restyler import Restyler
+
+        return Restyler.load(str(CHECKPOINT)), "normal2exhausted (shipped model)"
+    return StandInRestyler(), "stand-in restyler (numpy; the model checkpoint is not shipped yet)"
+
+
+def base_motion():
+    """A Bandai walk as humanoid motion, or a synthetic one if the data is absent."""
+    from stylecast.drivers.bvh_replay import humanoid_motion
+    from stylecast.motion.bvh import read_bvh
+
+    walk = DATA / "dataset-2" / "data" / "dataset-2_walk_normal_001.bvh.gz"
+    if walk.exists():
+        return humanoid_motion(read_bvh(walk))
+    sys.path.insert(0, str(REPO))
+    from tests.test_daemon import walk_clip
+
+    return walk_clip(600)
+
+
+def indexed_source(motion, name):
+    """A looping replay whose hips x position (cm) is 10 x the stream frame index."""
+    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.motion.clip import PoseFrame
+
+    class Indexed(ReplaySource):
+        def poll(self, now):
+            out = []
+            for f in super().poll(now):
+                i = round((f.timestamp - self._t0) * FPS)
+                out.append(PoseFrame(f.performer, f.timestamp, np.array([10.0 * i, 90.0, 0.0]), f.rotations))
+            return out
+
+    return Indexed(motion, name, loop=True)
+
+
+def receiver_main(ports, conn, decode_index):
+    """Receiver process: drain ports; optionally stamp (frame index, monotonic time)."""
+    import selectors
+    import struct
+
+    sel = selectors.DefaultSelector()
+    socks = []
+    for p in ports:
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
+        s.bind(("127.0.0.1", p))
+        s.setblocking(False)
+        sel.register(s, selectors.EVENT_READ)
+        socks.append(s)
+    conn.send("ready")
+    marker = b"Hips\x00\x00\x00\x00"
+    stamps, count = [], 0
+    while not conn.poll():
+        for key, _ in sel.select(0.1):
+            while True:
+                try:
+                    data = key.fileobj.recv(65536)
+                except BlockingIOError:
+                    break
+                count += 1
+                if decode_index:
+                    at = data.find(marker)
+                    if at >= 0:
+                        x = struct.unpack_from(">f", data, at + len(marker))[0]
+                        stamps.append((round(-x * 10), time.monotonic()))  # Unity x = -x_cm / 100
+    conn.recv()
+    conn.send((count, stamps))
+
+
+class Receiver:
+    def __init__(self, ports, decode_index=False):
+        ctx = mp.get_context("spawn")
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=receiver_main, args=(ports, child, decode_index), daemon=True)
+        self.proc.start()
+        assert self.conn.recv() == "ready"
+
+    def stop(self):
+        self.conn.send("stop")
+        result = self.conn.recv()
+        self.proc.join(5)
+        return result
+
+
+def free_ports(n):
+    """A run of n consecutive free UDP ports (performer k goes to base + k)."""
+    for base in range(41000, 60000, 97):
+        try:
+            socks = []
+            for k in range(n):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                socks.append(s)
+                s.bind(("127.0.0.1", base + k))
+            return base
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise RuntimeError("no free port range")
+
+
+def table(title, header, rows):
+    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
+    line = lambda r: "| " + " | ".join(str(x).ljust(w) for x, w in zip(r, widths)) + " |"  # noqa: E731
+    print(f"\n{title}\n" + line(header) + "\n|" + "|".join("-" * (w + 2) for w in widths) + "|")
+    for r in rows:
+        print(line(r))
+
+
+def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0):
+    from stylecast.daemon.clock import RealClock
+    from stylecast.daemon.config import DaemonConfig
+    from stylecast.daemon.engine import Daemon
+
+    cfg = DaemonConfig(hop=hop, control="off", out=[f"vmc://127.0.0.1:{port}"], bypass=bypass)
+    sources = [indexed_source(motion, f"p{k}") for k in range(n)]
+    return Daemon(cfg, sources, model, RealClock(), log_status=False)
+
+
+# ----------------------------------------------------------------------------- benches
+
+def bench_latency(model, motion, seconds=8.0):
+    rows = []
+    for hop in (1, 5, 15, 60):
+        port = free_ports(1)
+        rx = Receiver([port], decode_index=True)
+        d = make_daemon(1, hop, model, motion, port)
+        d.run(duration=seconds)
+        t0 = d.sessions[0].source._t0
+        d.close()
+        _, stamps = rx.stop()
+        lat = np.array([t - (t0 + i / FPS) for i, t in stamps]) * 1e3
+        lat = lat[len(lat) // 10:]  # skip the start-up second
+        own = d.sessions[0].latency
+        goal = hop / FPS * 1e3 + 5
+        rows.append((hop, f"{hop / FPS * 1e3:.1f}", f"{np.percentile(lat, 50):.2f}", f"{np.percentile(lat, 99):.2f}",
+                     f"{np.max(lat):.2f}", f"{own.percentile(50) * 1e3:.2f}", f"{own.percentile(99) * 1e3:.2f}",
+                     f"{goal:.1f}", "yes" if np.percentile(lat, 99) <= goal else "NO",
+                     d.sessions[0].blender.late_frames, d.dropped_ticks))
+    table("Latency: input frame arrival -> restyled frame received on loopback (ms)",
+          ("hop", "delay", "p50", "p99", "max", "daemon p50", "daemon p99", "goal p99", "met", "late", "dropped"),
+          rows)
+
+
+def run_capacity(n, model, motion, seconds, bypass=False):
+    port = free_ports(n)
+    rx = Receiver([port + k for k in range(n)])
+    d = make_daemon(n, 15, model, motion, port, bypass=bypass)
+    cpu0, wall0 = time.process_time(), time.monotonic()
+    d.run(duration=seconds)
+    cpu, wall = time.process_time() - cpu0, time.monotonic() - wall0
+    d.close()
+    received, _ = rx.stop()
+    late = sum(s.blender.late_frames for s in d.sessions)
+    p99 = max(s.latency.percentile(99) for s in d.sessions) * 1e3
+    return dict(n=n, dropped=d.dropped_ticks, late=late, p99=p99, tick99=d.tick_lateness.percentile(99) * 1e3, cpu=cpu, wall=wall, received=received,
+                sent=sum(s.vmc.sender.datagrams_sent for s in d.sinks), busy=d.worker.busy_seconds,
+                calls=np.percentile(d.worker.call_ms, 99) if d.worker.call_ms else 0.0)
+
+
+def bench_capacity(model, motion, seconds=8.0):
+    rows, best = [], 0
+    for n in (4, 8, 16, 24, 32, 40, 48, 64):
+        r = run_capacity(n, model, motion, seconds)
+        ok = r["dropped"] == 0
+        rows.append((n, r["dropped"], r["late"], f"{r['tick99']:.1f}", f"{r['p99']:.1f}", f"{r['calls']:.1f}",
+                     f"{r['cpu'] / r['wall'] * 100:.0f}%", f"{r['received']}/{r['sent']}", "ok" if ok else "FAIL"))
+        if ok:
+            best = n
+        else:
+            break
+    table("Capacity at hop 15 (each run %.0f s)" % seconds,
+          ("performers", "dropped ticks", "late frames", "tick start p99 ms late", "latency p99 ms", "model call p99 ms", "CPU (of 1 core)",
+           "datagrams rx/tx", ""), rows)
+    print(f"largest number of performers with zero dropped output frames: {best}")
+
+
+def bench_compute(model, motion, seconds=10.0):
+    """Work per tick under a virtual clock (no waiting, no scheduler noise): the whole
+    tick, the model included, done serially. A tick costing under 16.7 ms of one core is
+    what real time needs, so this bounds capacity on an idle machine from the work alone."""
+    from stylecast.daemon.clock import FakeClock
+    from stylecast.daemon.config import DaemonConfig
+    from stylecast.daemon.engine import Daemon
+
+    rows = []
+    for n in (1, 8, 16, 32, 48, 64):
+        cfg = DaemonConfig(hop=15, control="off", out=["vmc://127.0.0.1:9"])
+        d = Daemon(cfg, [indexed_source(motion, f"p{k}") for k in range(n)], model, FakeClock(), log_status=False)
+        cpu0, wall0 = time.process_time(), time.perf_counter()
+        d.run(duration=seconds)
+        cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+        d.close()
+        ticks = d.ticks
+        rows.append((n, f"{wall / ticks * 1e3:.2f}", f"{cpu / ticks * 1e3:.2f}", f"{cpu / ticks / n * 1e6:.0f}",
+                     f"{d.worker.busy_seconds / ticks * 1e3:.2f}", "yes" if wall / ticks < 1 / FPS else "no"))
+    table(f"Work per output tick at hop 15 under a virtual clock ({seconds:.0f} s of 60 fps content, all threads)",
+          ("performers", "wall ms/tick", "CPU ms/tick", "CPU us per performer-frame", "model ms/tick",
+           "fits 16.7 ms"), rows)
+
+
+def relay_main(listen_port, forward_port, conn):
+    """A plain python-osc relay: parse each datagram with python-osc, forward the bytes."""
+    import resource
+    import socketserver
+
+    from pythonosc import osc_packet
+
+    out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    dest = ("127.0.0.1", forward_port)
+
+    class Handler(socketserver.BaseRequestHandler):
+        def handle(self):
+            data = self.request[0]
+            osc_packet.OscPacket(data)  # what any python-osc receiver does per datagram
+            out.sendto(data, dest)
+
+    server = socketserver.UDPServer(("127.0.0.1", listen_port), Handler)
+    server.timeout = 0.1
+    conn.send("ready")
+    start = resource.getrusage(resource.RUSAGE_SELF)
+    while not conn.poll():
+        server.handle_request()
+    end = resource.getrusage(resource.RUSAGE_SELF)
+    conn.recv()
+    conn.send((end.ru_utime + end.ru_stime) - (start.ru_utime + start.ru_stime))
+
+
+def bench_cpu(model, motion, n=8, seconds=8.0):
+    rows = []
+    results = {}
+    for label, bypass in (("bypass", True), ("restyle", False)):
+        r = run_capacity(n, model, motion, seconds, bypass=bypass)
+        results[label] = r
+        rows.append((label, f"{r['cpu'] / (n * r['wall']) * 1e3:.2f}", f"{r['cpu'] / r['wall'] * 100:.0f}%",
+                     r["dropped"]))
+    # The relay floor: feed the daemon's own packets (captured once) at n performers x 60 fps.
+    from stylecast.daemon.clock import FakeClock
+    from stylecast.daemon.config import DaemonConfig
+    from stylecast.daemon.engine import Daemon
+
+    frames: list[list[bytes]] = []
+    cfg = DaemonConfig(hop=15, control="off", out=["vmc://127.0.0.1:9"])
+    d = Daemon(cfg, [indexed_source(motion, "p0")], model, FakeClock(), log_status=False,
+               tap=lambda dg: frames.append(list(dg)))
+    d.run(duration=2.0)
+    d.close()
+    ctx = mp.get_context("spawn")
+    port = free_ports(2)
+    sink = Receiver([port + 1])
+    conn, child = ctx.Pipe()
+    relay = ctx.Process(target=relay_main, args=(port, port + 1, child), daemon=True)
+    relay.start()
+    assert conn.recv() == "ready"
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    t0 = time.monotonic()
+    tick = 0
+    while time.monotonic() - t0 < seconds:
+        for _ in range(n):
+            for dg in frames[tick % len(frames)]:
+                tx.sendto(dg, ("127.0.0.1", port))
+        tick += 1
+        time.sleep(max(0.0, t0 + tick / FPS - time.monotonic()))
+    wall = time.monotonic() - t0
+    conn.send("stop")
+    cpu = conn.recv()
+    relay.join(5)
+    sink.stop()
+    rows.append(("python-osc relay (floor)", f"{cpu / (n * wall) * 1e3:.2f}", f"{cpu / wall * 100:.0f}%", "-"))
+    table(f"CPU per performer-second ({n} performers, hop 15, {seconds:.0f} s; daemon = all its threads)",
+          ("mode", "CPU ms per performer-s", "CPU (of 1 core)", "dropped ticks"), rows)
+
+
+def euler_steps(rotations):
+    """The paper's d_t per frame and bone: |euler(t) - euler(t-1)| in [-1, 1] units."""
+    from stylecast.motion import rotations as rot
+
+    e = rot.to_euler(rotations, "ZXY") / 180.0
+    diff = e[1:] - e[:-1]
+    diff = (diff + 1.0) % 2.0 - 1.0  # across the +-180 wrap, take the short way
+    return np.linalg.norm(diff, axis=-1)  # (T-1, J): step from frame t-1 to t is row t-1
+
+
+def seam_sums(out, hop, skip=120):
+    """(sum of d_t at boundaries, count, sum elsewhere, count): pooled over clips later."""
+    d = euler_steps(out).mean(axis=1)
+    boundary = np.zeros(len(d), bool)
+    grid = 60 if hop == 1 else hop
+    for e in range(59, len(d), grid):
+        boundary[e] = True  # the step into frame e + 1, the first frame of the next word
+    keep = np.arange(len(d)) >= skip
+    b, o = d[boundary & keep], d[~boundary & keep]
+    return np.array([b.sum(), len(b), o.sum(), len(o)])
+
+
+def ratio(sums):
+    return (sums[0] / sums[1]) / (sums[2] / sums[3])
+
+
+def bench_seams(model):
+    from stylecast.daemon.clock import FakeClock
+    from stylecast.daemon.config import DaemonConfig
+    from stylecast.daemon.engine import Daemon
+    from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.motion.bvh import read_bvh
+
+    rows, actions, pooled = [], [], {}
+    for path in sorted((DATA / "dataset-2" / "data").glob("dataset-2_*_normal_*.bvh.gz")):
+        action = path.name.split("_")[1]
+        if actions.count(action) >= 2 or len(rows) >= 8:
+            continue
+        clip = read_bvh(path)
+        if clip.duration < 5.0:  # long enough for several words after the start-up fade
+            continue
+        actions.append(action)
+        motion = humanoid_motion(clip)
+        row = [path.name.split(".")[0]]
+        for col, (hop, decay) in enumerate(((0, 15), (0, 1), (15, -1.0), (1, -1.0), (60, 0.0))):
+            if hop == 0:  # the input itself, on the hop-15 and the 60-frame grid
+                sums = seam_sums(ReplaySourceRotations(motion), decay)
+                pooled[col] = pooled.get(col, 0) + sums
+                row.append(f"{ratio(sums):.3f}")
+                continue
+            frames = []
+            cfg = DaemonConfig(hop=hop, decay=decay, control="off")
+            d = Daemon(cfg, [ReplaySource(motion, "p0")], model, FakeClock(), frame_taps=[frames.append],
+                       log_status=False)
+            d.run()
+            d.close()
+            sums = seam_sums(np.stack([f.rotations for f in frames]), hop)
+            pooled[col] = pooled.get(col, 0) + sums
+            row.append(f"{ratio(sums):.3f}")
+        rows.append(row)
+    rows.append(["ALL (pooled d_t)"] + [f"{ratio(pooled[c]):.3f}" for c in range(5)])
+    table("Seam ratio of the live output (paper's d_t; <= 1.10 is the goal; input ~1.0)",
+          ("clip", "input, 15-grid", "input, 60-grid", "hop 15", "hop 1 (60-grid)", "hop 60 no blend (baseline)"),
+          rows)
+
+
+def ReplaySourceRotations(motion):  # noqa: N802 (reads like the source it stands for)
+    from stylecast.drivers.bvh_replay import ReplaySource
+
+    return ReplaySource(motion, "x").rotations
+
+
+def main(argv):
+    which = set(argv) or {"latency", "compute", "capacity", "cpu", "seams"}
+    print(machine_info())
+    model, label = restyler()
+    print(f"restyler: {label}")
+    motion = base_motion()
+    if "latency" in which:
+        bench_latency(model, motion)
+    if "compute" in which:
+        bench_compute(model, motion)
+    if "capacity" in which:
+        bench_capacity(model, motion)
+    if "cpu" in which:
+        bench_cpu(model, motion)
+    if "seams" in which:
+        bench_seams(model)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

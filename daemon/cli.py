@@ -1,0 +1,101 @@
+"""``stylecast serve``, ``stylecast demo`` and ``stylecast repair``.
+
+Heavy imports (numpy, scipy, torch through the model) happen inside the commands so
+``stylecast --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("serve", help="run the live restyling daemon",
+                              description="Restyle live mocap: sources in, VMC out. Flags override --config.")
+    _daemon_flags(p)
+    p.add_argument("--source", action="append", default=None, metavar="URL",
+                   help="bvh:///clip.bvh?loop=1&speed=1.0&name=alice, vmc://HOST:PORT, serial://...; "
+                        "repeat for several performers")
+    p.set_defaults(func=cmd_serve)
+
+    d = subparsers.add_parser("demo", help="replay a Bandai clip through the daemon to 127.0.0.1:39539",
+                              description="No hardware needed: replays a recorded clip (looping) through the "
+                                          "daemon with the shipped model and sends VMC to 127.0.0.1:39539.")
+    d.add_argument("clip", nargs="?", default=None, help="a BVH file (default: a dataset-2 normal walk)")
+    d.add_argument("--clip", dest="clip_option", default=None, metavar="PATH", help="same as CLIP")
+    d.add_argument("--view", action="store_true", help="also open the viewer (needs stylecast[viewer] and a display)")
+    d.add_argument("--speed", type=float, default=1.0, help="replay speed (default 1.0)")
+    _daemon_flags(d)
+    d.set_defaults(func=cmd_demo)
+
+    r = subparsers.add_parser("repair", help="fix the frame count of a BVH recording cut short (kill -9)")
+    r.add_argument("file", help="the .bvh file to repair in place")
+    r.set_defaults(func=cmd_repair)
+
+
+def _daemon_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", default=None, metavar="FILE", help="TOML file with the same settings")
+    p.add_argument("--out", action="append", default=None, metavar="URL",
+                   help="vmc://HOST:PORT receiver (repeat to fan out); performer k goes to PORT+k")
+    p.add_argument("--out-input", dest="out_input", action="append", default=None, metavar="URL",
+                   help="vmc://HOST:PORT for the unrestyled input (before/after views)")
+    p.add_argument("--record", default=None, metavar="FILE.bvh", help="record the restyled humanoid motion")
+    p.add_argument("--hop", type=int, default=None, help="frames between motion words, 1..60 (default 15)")
+    p.add_argument("--delay", type=int, default=None, help="output delay in frames, >= hop (default: hop)")
+    p.add_argument("--decay", type=float, default=None, help="seam offset time constant in frames")
+    p.add_argument("--crossfade", type=float, default=None, help="seconds of every fade (default 0.5)")
+    p.add_argument("--intensity", type=float, default=None, help="0..1 (default 1)")
+    p.add_argument("--bypass", action="store_true", default=None, help="start in bypass (pass-through)")
+    p.add_argument("--model", default=None, help="model name or checkpoint path (default normal2exhausted); "
+                                                 "'identity' runs without a model")
+    p.add_argument("--direction", default=None, help="restyling direction of the model")
+    p.add_argument("--control", default=None, metavar="HOST:PORT",
+                   help="OSC control port (default 127.0.0.1:39570; 'off' disables)")
+    p.add_argument("--allow", action="append", default=None, metavar="ADDR",
+                   help="source address or network allowed on the control port (default loopback)")
+    p.add_argument("--status-interval", dest="status_interval", type=float, default=None,
+                   help="seconds between status lines (default 5)")
+    p.add_argument("--unbundled", dest="bundled", action="store_false", default=None,
+                   help="send one OSC message per datagram (for receivers without bundle support)")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+
+
+_CONFIG_KEYS = ("source", "out", "out_input", "record", "hop", "delay", "decay", "crossfade", "intensity",
+                "bypass", "model", "direction", "control", "allow", "status_interval", "bundled", "duration")
+
+
+def _config(args):
+    from .config import build_config, load_config
+
+    flags = {k: getattr(args, k, None) for k in _CONFIG_KEYS}
+    return build_config(load_config(args.config), flags)
+
+
+def _setup_logging() -> None:
+    import logging
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S",
+                        stream=sys.stderr)
+
+
+def cmd_serve(args) -> int:
+    from .runner import run_daemon
+
+    _setup_logging()
+    return run_daemon(_config(args))
+
+
+def cmd_demo(args) -> int:
+    from .demo import run_demo
+
+    _setup_logging()
+    return run_demo(args, _config(args))
+
+
+def cmd_repair(args) -> int:
+    from stylecast.drivers.bvh_recorder import repair_bvh
+
+    frames, dropped = repair_bvh(args.file)
+    print(f"{args.file}: {frames} frames kept, {dropped} bytes of a cut last frame dropped; frame count fixed")
+    return 0

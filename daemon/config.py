@@ -1,0 +1,120 @@
+"""Daemon settings: defaults, then a TOML file (``--config``), then flags (flags win).
+
+The TOML file uses the flag names with underscores, for example::
+
+    source = ["bvh:///clips/walk.bvh?loop=1"]
+    out = ["vmc://127.0.0.1:39539"]
+    hop = 15
+    intensity = 0.8
+    model = "normal2exhausted"
+    control = "127.0.0.1:39570"
+    allow = ["127.0.0.1", "192.168.1.20"]
+
+Unknown keys and wrong types are refused with one sentence (a typo must not be ignored).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+from stylecast.motion.errors import UserError
+
+from .control import DEFAULT_ALLOW, DEFAULT_CONTROL_PORT
+
+FPS = 60.0
+
+
+@dataclass
+class DaemonConfig:
+    source: list[str] = field(default_factory=list)
+    out: list[str] = field(default_factory=list)
+    out_input: list[str] = field(default_factory=list)
+    record: str = ""
+    hop: int = 15
+    delay: int = 0  # frames; 0 = the hop (the minimum)
+    decay: float = -1.0  # seam offset time constant in frames; -1 = the blender's default
+    crossfade: float = 0.5  # seconds of every pass-through <-> restyled fade
+    intensity: float = 1.0
+    bypass: bool = False
+    model: str = "normal2exhausted"
+    direction: str = ""
+    control: str = f"127.0.0.1:{DEFAULT_CONTROL_PORT}"  # "off" disables it
+    allow: list[str] = field(default_factory=lambda: list(DEFAULT_ALLOW))
+    status_interval: float = 5.0
+    bundled: bool = True
+    duration: float = 0.0  # seconds; 0 = until stopped
+
+    def validate(self) -> "DaemonConfig":
+        if not 1 <= self.hop <= 60:
+            raise UserError(f"--hop {self.hop} is out of range; use 1 to 60 frames")
+        if self.delay and self.delay < self.hop:
+            raise UserError(f"--delay {self.delay} is shorter than the hop ({self.hop}); use at least the hop")
+        if not 0.0 <= self.intensity <= 1.0:
+            raise UserError(f"--intensity {self.intensity} is out of range; use 0 to 1")
+        if not 0.0 <= self.crossfade <= 60.0:
+            raise UserError(f"--crossfade {self.crossfade} is out of range; use 0 to 60 seconds")
+        if self.status_interval <= 0:
+            raise UserError("--status-interval must be positive")
+        return self
+
+    @property
+    def crossfade_frames(self) -> int:
+        return max(1, round(self.crossfade * FPS))
+
+    def control_address(self) -> tuple[str, int] | None:
+        if self.control.lower() in ("off", "none", "", "0"):
+            return None
+        host, _, port = self.control.rpartition(":")
+        try:
+            return (host.strip("[]") or "127.0.0.1", int(port))
+        except ValueError:
+            raise UserError(f"--control {self.control!r} must be HOST:PORT such as 127.0.0.1:{DEFAULT_CONTROL_PORT}, "
+                            f"or off") from None
+
+
+def _check_type(name: str, value, default):
+    kind = type(default)
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if kind is list:
+        if isinstance(value, str):
+            return [value]
+        if isinstance(value, list) and all(isinstance(v, str) for v in value):
+            return value
+    elif isinstance(value, kind) and not (kind is int and isinstance(value, bool)):
+        return value
+    raise UserError(f"config key {name} = {value!r} has the wrong type; expected {kind.__name__}")
+
+
+def load_config(path: str | Path | None) -> dict:
+    """The TOML table as validated DaemonConfig field values."""
+    if not path:
+        return {}
+    path = Path(path)
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise UserError(f"cannot read config file {path}: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"config file {path} is not valid TOML: {exc}") from None
+    defaults = DaemonConfig()
+    known = {f.name for f in fields(DaemonConfig)}
+    out = {}
+    for key, value in table.items():
+        name = key.replace("-", "_")
+        if name not in known:
+            raise UserError(f"config file {path}: unknown key {key!r} (known keys: {', '.join(sorted(known))})")
+        out[name] = _check_type(name, value, getattr(defaults, name))
+    return out
+
+
+def build_config(file_values: dict, flag_values: dict) -> DaemonConfig:
+    """Defaults < config file < flags; a flag left at None (not given) does not override."""
+    cfg = DaemonConfig(**file_values)
+    for key, value in flag_values.items():
+        if value is None or (isinstance(value, list) and not value):
+            continue
+        setattr(cfg, key, value)
+    return cfg.validate()

@@ -1,0 +1,275 @@
+"""The daemon: sources -> sessions -> batched inference -> 60 Hz output clock -> sinks.
+
+Latency model (``motion.words`` has the derivation):
+
+* Input frame t of a performer arrives at time a(t). Every ``hop`` frames a 60-frame word
+  ending at e is cut the moment frame e arrives and goes to the inference worker.
+* The output clock ticks at T0 + k/60. At each tick every session renders exactly one
+  frame: output frame t leaves on the tick ``delay`` frames after input frame t arrived
+  (delay >= hop, default hop), so the added latency is delay/60 s plus the processing
+  time of the tick (a replayed source arrives on the ticks themselves).
+* The word ending at e is first needed on the tick after frame e arrived: the model gets
+  one frame period (16.7 ms). A word that is not back by then is *late*: the blender
+  fades that stretch to pass-through and blends back in when words return (counted per
+  performer as late frames). The output clock never waits for the model.
+* A tick that starts late (machine busy) still goes out, as soon as possible; a tick
+  more than ``MAX_BACKLOG_TICKS`` periods late is dropped instead of bunched: its output
+  frames are counted as dropped, the sessions skip the matching input frames, and the
+  clock stays on its grid (no drift, no growing latency).
+
+Per tick, in this order (the order is what makes fake-clock replays exact):
+  1. apply queued control commands, swap in a newly loaded model;
+  2. collect finished inference results (under a virtual clock: wait for all of them);
+  3. poll every source and cut words; submit this tick's words as ONE batch;
+  4. render one frame per session and emit it to its sinks (VMC, input VMC, recorder);
+  5. every ``status_interval`` seconds, log one status line per performer.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+
+from stylecast.motion.errors import UserError
+from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
+from stylecast.motion.words import BlendSettings
+
+from .clock import Clock
+from .config import FPS, DaemonConfig
+from .control import ControlServer
+from .inference import InferenceWorker
+from .output import (PerformerSinks, VmcOut, parse_outputs, performer_targets, recording_path)
+from .restylers import load_restyler, model_name, style_label, with_direction
+from .session import Session
+from .status import LatencyWindow, status_line, status_messages
+
+log = logging.getLogger("stylecast.daemon")
+STATUS_REPLIES_PER_TICK = 4  # bounds the work a status-request flood can cause
+MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not sent late
+
+
+class Daemon:
+    def __init__(self, config: DaemonConfig, sources: list, restyler, clock: Clock, *,
+                 tap=None, frame_taps=None, model_loader=load_restyler, log_status: bool = True):
+        if not sources:
+            raise UserError("no source given; add one such as --source bvh:///path/clip.bvh?loop=1")
+        self.config = config.validate()
+        self.clock = clock
+        self.model_loader = model_loader
+        self.log_status = log_status
+        self.settings = BlendSettings(
+            hop=config.hop, delay=config.delay or None,
+            decay_frames=None if config.decay < 0 else config.decay,
+            crossfade_frames=config.crossfade_frames)
+        self.sessions: list[Session] = []
+        self.sinks: list[PerformerSinks] = []
+        if config.direction:
+            restyler = with_direction(restyler, config.direction)
+        self.worker = InferenceWorker(restyler)
+        self.control: ControlServer | None = None
+        self.style = style_label(restyler)
+        self.ticks = 0
+        self.dropped_ticks = 0
+        self.tick_lateness = LatencyWindow()  # how late each tick started (scheduler, load)
+        self.control_errors = 0
+        self._pending_model = None
+        self._model_lock = threading.Lock()
+        self._t0: float | None = None
+        self._next_status = 0.0
+        try:
+            self._open(sources, tap, frame_taps)
+        except BaseException:
+            self.close()
+            raise
+
+    # -- construction -----------------------------------------------------------------
+    def _open(self, sources, tap, frame_taps) -> None:
+        outs, bundled_out = parse_outputs(self.config.out)
+        ins, bundled_in = parse_outputs(self.config.out_input)
+        names = set()
+        for k, source in enumerate(sources):
+            if source.performer in names:
+                raise UserError(f"two sources are called {source.performer!r}; give each a name=... option")
+            names.add(source.performer)
+            skeleton = source.skeleton if source.skeleton is not None else humanoid_skeleton_default()
+            if tuple(skeleton.names) != HUMANOID_BONES:
+                raise UserError(f"source {source.performer!r} does not deliver the humanoid skeleton")
+            session = Session(k, source, self.settings, len(HUMANOID_BONES))
+            session.intensity = self.config.intensity
+            session.set_bypass(self.config.bypass)
+            self.sessions.append(session)
+            bundled = self.config.bundled
+            self.sinks.append(PerformerSinks(
+                skeleton.offsets,
+                vmc=VmcOut(performer_targets(outs, k), bundled if bundled_out is None else bundled_out, tap)
+                if outs else None,
+                vmc_input=VmcOut(performer_targets(ins, k), bundled if bundled_in is None else bundled_in)
+                if ins else None,
+                recorder=self._recorder(k, skeleton),
+                frame_taps=frame_taps))
+        address = self.config.control_address()
+        if address is not None:
+            self.control = ControlServer(*address, allow=self.config.allow)
+
+    def _recorder(self, k, skeleton):
+        if not self.config.record:
+            return None
+        from stylecast.drivers.bvh_recorder import BvhRecorder
+
+        return BvhRecorder(recording_path(self.config.record, k), skeleton, FPS)
+
+    # -- the clock ----------------------------------------------------------------------
+    def start(self) -> None:
+        self._t0 = self.clock.now()
+        self._next_status = self._t0 + self.config.status_interval
+        for s in self.sessions:
+            s.source.start(self._t0)
+
+    def tick_time(self, k: int) -> float:
+        return self._t0 + k / FPS
+
+    @property
+    def finished(self) -> bool:
+        """Every source has ended and every session has shown its last frame."""
+        return all(s.source.finished and s.out_t is not None and s.out_t >= s.cutter.frames_seen
+                   for s in self.sessions)
+
+    def run(self, stop: threading.Event | None = None, duration: float = 0.0) -> None:
+        if self._t0 is None:
+            self.start()
+        while not (stop is not None and stop.is_set()) and not self.finished:
+            if duration and self.ticks / FPS >= duration:
+                break
+            self.clock.sleep_until(self.tick_time(self.ticks))
+            if stop is not None and stop.is_set():
+                break
+            self.step()
+            self._drop_missed_ticks()
+
+    def _drop_missed_ticks(self) -> None:
+        if self.clock.virtual:
+            return
+        latest = math.floor((self.clock.now() - self._t0) * FPS)
+        missed = latest - MAX_BACKLOG_TICKS - self.ticks
+        if missed > 0:
+            self.dropped_ticks += missed
+            self.ticks += missed
+            for s in self.sessions:
+                s.dropped += missed
+                s.pending_skip += missed
+
+    # -- one tick -----------------------------------------------------------------------
+    def step(self) -> None:
+        if self._t0 is None:
+            self.start()
+        now = self.tick_time(self.ticks)
+        self.tick_lateness.add(max(0.0, self.clock.now() - now))
+        self._apply_control()
+        if self.clock.virtual:
+            self.worker.wait_idle()
+        done, failed = self.worker.collect()
+        for s, end, word in done:
+            self.sessions[s].add_word(end, word)
+        for s, _end in failed:
+            self.sessions[s].words_failed += 1
+        batch = []
+        for session in self.sessions:
+            for end, word in session.ingest(now):
+                batch.append((session.index, end, word))
+        self.worker.submit(batch)
+        vmc_time = self.ticks / FPS
+        for session, sinks in zip(self.sessions, self.sinks):
+            frame = session.render(drain=session.source.finished)
+            if frame is None:
+                continue
+            sinks.emit(frame, vmc_time)
+            if session.new_frame:
+                session.latency.add(self.clock.now() - frame.arrival)
+        self.ticks += 1
+        if self.clock.now() >= self._next_status:
+            self._next_status += self.config.status_interval
+            if self.log_status:
+                for line in self.status_lines():
+                    log.info(line)
+
+    # -- control ------------------------------------------------------------------------
+    def _apply_control(self) -> None:
+        with self._model_lock:
+            model, self._pending_model = self._pending_model, None
+        if model is not None:
+            self.worker.set_restyler(model)
+            self.style = style_label(model)
+            log.info("model %s is live", self.style)
+        if self.control is None:
+            return
+        replies = 0
+        for command, value, performer, addr in self.control.drain():
+            try:
+                if command == "status":
+                    if replies < STATUS_REPLIES_PER_TICK:
+                        replies += 1
+                        self.control.reply(addr, status_messages(self.snapshot()))
+                else:
+                    self.apply(command, value, performer)
+            except UserError as exc:
+                self.control_errors += 1
+                log.warning("control: %s", exc)
+
+    def apply(self, command: str, value, performer: str | None = None) -> None:
+        """Apply one setting live (also the API tests and embedders use)."""
+        targets = [s for s in self.sessions if performer in (None, s.performer)]
+        if performer is not None and not targets:
+            raise UserError(f"no performer called {performer!r}")
+        if command == "intensity":
+            for s in targets:
+                s.intensity = float(value)
+        elif command == "bypass":
+            for s in targets:
+                s.set_bypass(bool(value))
+        elif command == "crossfade":
+            self.settings.crossfade_frames = max(1, round(float(value) * FPS))
+        elif command == "direction":
+            model = with_direction(self.worker.restyler, str(value))
+            self.worker.set_restyler(model)
+            self.style = style_label(model)
+        elif command == "model":
+            self._load_model_async(str(value))
+        else:
+            raise UserError(f"unknown control command {command!r}")
+
+    def _load_model_async(self, name: str) -> None:
+        def load():
+            try:
+                model = self.model_loader(name)
+            except Exception as exc:  # a bad name or checkpoint must not stop the show
+                self.control_errors += 1
+                log.warning("control: model %r not loaded: %s", name, exc)
+                return
+            with self._model_lock:
+                self._pending_model = model
+
+        threading.Thread(target=load, name="stylecast-model-loader", daemon=True).start()
+
+    # -- status -------------------------------------------------------------------------
+    def snapshot(self) -> dict:
+        performers = [s.counters() for s in self.sessions]
+        return {"daemon": {"style": self.style, "model": model_name(self.worker.restyler),
+                           "performers": len(self.sessions), "ticks": self.ticks,
+                           "dropped_ticks": self.dropped_ticks, "faults": self.worker.faults,
+                           "control_refused": self.control.refused if self.control else 0},
+                "performers": performers}
+
+    def status_lines(self) -> list[str]:
+        snap = self.snapshot()
+        return [status_line(p, snap["daemon"]["style"]) for p in snap["performers"]]
+
+    def close(self) -> None:
+        """Stop threads, close sockets, finish recordings (valid BVH). Safe to call twice."""
+        self.worker.close()
+        if self.control is not None:
+            self.control.close()
+        for sinks in self.sinks:
+            sinks.close()
+        for s in self.sessions:
+            s.source.close()

@@ -1,0 +1,131 @@
+"""Batched inference off the I/O path.
+
+The output loop hands over, once per tick, every word that tick completed across all
+performers (``submit``); a worker thread runs them through ONE ``restyle_words`` call
+and queues the results; the loop picks up whatever has finished (``collect``) at the
+start of its next tick and never waits for the model (except under a virtual clock,
+where model time is free by definition and waiting is what makes replays exact).
+If the worker has fallen behind, the jobs waiting for it are merged into one bigger
+batch: catching up costs one call, not several.
+
+A restyler is any object with ``restyle_words(words (B, 60, J, 4)) -> same shape``.
+A call that raises, returns the wrong shape, or returns non-finite or zero-length
+quaternions is a *fault*: the affected words are simply never delivered, so the seam
+blender treats them as late and fades that stretch to pass-through; the fault is
+counted, the worker carries on.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+
+import numpy as np
+
+log = logging.getLogger("stylecast.daemon")
+
+
+class InferenceWorker:
+    def __init__(self, restyler):
+        self._restyler = restyler
+        self._jobs: deque = deque()  # lists of (session index, end, word)
+        self._results: deque = deque()  # (session index, end, restyled word)
+        self._failed: deque = deque()  # (session index, end) of words lost to a fault
+        self._cond = threading.Condition()
+        self._pending = 0  # jobs submitted and not finished
+        self._closing = False
+        self.batches = 0
+        self.words = 0
+        self.faults = 0
+        self.fault_words = 0
+        self.last_fault = ""
+        self.busy_seconds = 0.0
+        self.call_ms = deque(maxlen=600)
+        self._thread = threading.Thread(target=self._run, name="stylecast-inference", daemon=True)
+        self._thread.start()
+
+    @property
+    def restyler(self):
+        return self._restyler
+
+    def set_restyler(self, restyler) -> None:
+        """Swap the model; jobs already running finish with the old one."""
+        self._restyler = restyler
+
+    def submit(self, items: list[tuple[int, int, np.ndarray]]) -> None:
+        if not items:
+            return
+        with self._cond:
+            self._jobs.append(items)
+            self._pending += 1
+            self._cond.notify_all()
+
+    def collect(self) -> tuple[list, list]:
+        """(finished results, failed (session, end) pairs) since the last call."""
+        done, failed = [], []
+        while self._results:
+            done.append(self._results.popleft())
+        while self._failed:
+            failed.append(self._failed.popleft())
+        return done, failed
+
+    def wait_idle(self, timeout: float | None = None) -> bool:
+        with self._cond:
+            return self._cond.wait_for(lambda: self._pending == 0, timeout)
+
+    def close(self) -> None:
+        with self._cond:
+            self._closing = True
+            self._cond.notify_all()
+        self._thread.join(timeout=5.0)
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                self._cond.wait_for(lambda: self._jobs or self._closing)
+                if self._closing:
+                    return
+                items, merged = [], 0
+                while self._jobs:
+                    items += self._jobs.popleft()
+                    merged += 1
+            try:
+                self._process(items)
+            finally:
+                with self._cond:
+                    self._pending -= merged
+                    self._cond.notify_all()
+
+    def _process(self, items: list) -> None:
+        words = np.stack([w for _, _, w in items])
+        restyler = self._restyler
+        t0 = time.perf_counter()
+        try:
+            out = np.asarray(restyler.restyle_words(words), dtype=np.float64)
+            if out.shape != words.shape:
+                raise ValueError(f"restyler returned shape {out.shape} for words of shape {words.shape}")
+            norms = np.linalg.norm(out, axis=-1)
+            ok = np.all(np.isfinite(out), axis=(1, 2, 3)) & np.all(norms > 1e-6, axis=(1, 2))
+        except Exception as exc:  # any model failure is a counted fault, never a crash
+            out, ok = None, np.zeros(len(items), bool)
+            self.last_fault = f"{type(exc).__name__}: {exc}"
+        elapsed = time.perf_counter() - t0
+        self.busy_seconds += elapsed
+        self.call_ms.append(elapsed * 1e3)
+        self.batches += 1
+        self.words += len(items)
+        if not ok.all():
+            self.faults += 1
+            self.fault_words += int((~ok).sum())
+            if out is not None:
+                self.last_fault = "restyler returned non-finite or zero quaternions"
+            if self.faults in (1, 10, 100) or self.faults % 1000 == 0:
+                log.warning("restyler fault #%d (%s): %d word(s) fall back to pass-through",
+                            self.faults, self.last_fault, int((~ok).sum()))
+        for (s, end, _), good, i in zip(items, ok, range(len(items))):
+            if good:
+                self._results.append((s, end, out[i]))
+            else:
+                self._failed.append((s, end))

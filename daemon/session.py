@@ -1,0 +1,172 @@
+"""One performer's stream: input ring, motion words, seam blender, one output frame per tick.
+
+The algorithm is ``motion.words`` (WordCutter + SeamBlender), the very code offline
+``stylecast restyle`` runs through ``restyle_stream``; this module only adds what a live
+stream needs around it:
+
+* Frame indices count input frames in arrival order. Output frame t is rendered ``delay``
+  frames after input frame t arrived (the blender's latency model), one frame per tick
+  of the daemon's 60 Hz output clock.
+* Jitter: a tick that brings two input frames and one that brings none even out (the
+  output index lags the newest input by ``delay`` plus at most ``MAX_LAG`` frames). A
+  source running steadily fast is caught up by skipping frames (counted).
+* A lag that outlives the jitter (a source that sent a burst, ticks the machine
+  dropped) costs latency for good unless it is worked off: after ``LAG_PATIENCE`` ticks
+  behind, or at once for ticks the engine dropped, the session skips input frames until
+  it is back at exactly ``delay`` frames.
+* Stall: when no new input arrives the session re-sends its last output frame (counted
+  as held): the avatar holds instead of freezing the clock or jumping.
+* Bypass and (re)activation: in bypass no words are cut for the model (saves the CPU);
+  when bypass ends, frames whose serving word was cut before are shown as pass-through
+  without counting them late, and the blender fades the restyle back in.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from stylecast.motion.clip import PoseFrame
+from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter
+
+from .status import LatencyWindow
+
+MAX_LAG = 3  # frames of jitter absorbed before skipping ahead
+LOST_AFTER = 60  # ticks without new input (1 s) before the performer is reported lost
+LAG_PATIENCE = 30  # ticks a session may run behind its delay before it drops one frame
+
+
+@dataclass(frozen=True, eq=False)
+class OutputFrame:
+    performer: str
+    index: int  # input/output frame index t
+    arrival: float  # when input frame t arrived, on the daemon clock
+    root_position: np.ndarray  # (3,) cm, passed through
+    rotations: np.ndarray  # (J, 4) restyled (blended) local rotations
+    input_rotations: np.ndarray  # (J, 4) what came in (for --out-input)
+    held: bool = False
+
+
+class Session:
+    def __init__(self, index: int, source, settings: BlendSettings, num_bones: int):
+        self.index = index
+        self.source = source
+        self.performer = source.performer
+        self.settings = settings
+        self.cutter = WordCutter(settings.hop, settings.word_length)
+        self.blender = SeamBlender(settings, num_bones)
+        self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
+        self.frames_in = 0
+        self.out_t: int | None = None  # next output frame index
+        self.last_output: OutputFrame | None = None
+        self.intensity = 1.0
+        self.bypass = False
+        self._resume_end = 0  # words ending before this were never cut for the model
+        # counters
+        self.frames_out = 0
+        self.held = 0
+        self.dropped = 0  # output ticks the overloaded machine missed
+        self.held_run = 0  # consecutive ticks held (source silent)
+        self.pending_skip = 0  # input frames to skip to make up for dropped ticks
+        self._lag_ticks = 0
+        self.new_frame = False  # did the last render produce a new frame (not a hold)
+        self.skipped = 0
+        self.words = 0
+        self.words_failed = 0
+        self.latency = LatencyWindow()
+
+    # -- input side -------------------------------------------------------------------
+    def ingest(self, now: float) -> list[tuple[int, np.ndarray]]:
+        """Pull the source's new frames; return the words (end, word) they completed."""
+        words = []
+        for frame in self.source.poll(now):
+            words += self.push(frame)
+        return words
+
+    def push(self, frame: PoseFrame) -> list[tuple[int, np.ndarray]]:
+        t = self.cutter.frames_seen
+        rotations = np.asarray(frame.rotations, dtype=np.float64)
+        self._inputs.append((t, float(frame.timestamp), np.asarray(frame.root_position, np.float64), rotations))
+        self.frames_in += 1
+        out = self.cutter.push(rotations)
+        if out is None or self.bypass:
+            return []
+        self.words += 1
+        return [out]
+
+    def set_bypass(self, bypass: bool) -> None:
+        if self.bypass and not bypass:
+            # The next word the model will see is the next one the cutter emits.
+            first = self.settings.word_length - 1
+            n = self.cutter.frames_seen
+            self._resume_end = first if n <= first else first + -(-(n - first) // self.settings.hop) * self.settings.hop
+        self.bypass = bypass
+
+    def add_word(self, end: int, restyled: np.ndarray) -> None:
+        self.blender.add_word(end, restyled)
+
+    # -- output side ------------------------------------------------------------------
+    def render(self, drain: bool = False) -> OutputFrame | None:
+        """The output frame for this tick: a new one, the held last one, or None before
+        the first ``delay`` frames have arrived. ``drain`` (the source has ended): the
+        last ``delay`` frames follow without waiting for input that will never come."""
+        newest = self.cutter.frames_seen - 1
+        target = newest if drain else newest - self.settings.delay
+        self.new_frame = False
+        if target < 0:
+            return None
+        if self.out_t is None:
+            self.out_t = target
+        elif not drain:
+            behind = target - self.out_t
+            self._lag_ticks = self._lag_ticks + 1 if behind > 0 else 0
+            skip = behind if behind > MAX_LAG else min(behind, self.pending_skip)
+            if skip <= 0 and self._lag_ticks > LAG_PATIENCE:
+                skip = 1
+            if skip > 0:
+                self.skipped += skip
+                self.out_t += skip
+                self._lag_ticks = 0
+            self.pending_skip = 0
+        if self.out_t > target:
+            if not drain:
+                self.held += 1
+                self.held_run += 1
+            return self.last_output
+        self.held_run = 0
+        t = self.out_t
+        _, arrival, root, input_rot = self._input(t)
+        active = (not self.bypass) and self.blender.serving_word(t) >= self._resume_end
+        rotations = self.blender.render(t, input_rot, self.intensity, active)
+        self.out_t = t + 1
+        self.frames_out += 1
+        frame = OutputFrame(self.performer, t, arrival, root, rotations, input_rot)
+        self.last_output = frame
+        self.new_frame = True
+        return frame
+
+    def _input(self, t: int):
+        # The ring holds the last delay + MAX_LAG + 2 frames and t lags the newest by at
+        # most delay + MAX_LAG, so t is always there; index from the right end.
+        item = self._inputs[t - self._inputs[-1][0] - 1]
+        assert item[0] == t
+        return item
+
+    @property
+    def lost(self) -> bool:
+        """The source has been silent for a second (or never sent): shown in the status."""
+        return self.held_run >= LOST_AFTER or (self.frames_in == 0 and not self.source.finished)
+
+    def counters(self) -> dict:
+        return {
+            "performer": self.performer, "frames_in": self.frames_in, "frames_out": self.frames_out,
+            "late": self.blender.late_frames, "held": self.held, "skipped": self.skipped,
+            "dropped": self.dropped, "lost": self.lost,
+            "words": self.words, "words_failed": self.words_failed,
+            "intensity": self.intensity, "bypass": self.bypass, "mix": round(self.blender.mix, 3),
+            "latency_p50_ms": self.latency.percentile(50) * 1e3,
+            "latency_p99_ms": self.latency.percentile(99) * 1e3,
+            **{f"source_{k}": v for k, v in self.source.counters().items()},
+        }
