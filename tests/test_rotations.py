@@ -28,6 +28,13 @@ def test_slerp_matches_scipy_including_short_arc_and_near_equal():
         assert rot.angle_between(ours[i], s) < 1e-6
 
 
+def test_from_euler_matches_scipy_every_order():
+    angles = np.random.default_rng(0).uniform(-400, 400, (500, 3))
+    for order in ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"):
+        expected = Rotation.from_euler(order, angles, degrees=True).as_quat()
+        np.testing.assert_allclose(rot.from_euler(angles, order), expected, atol=1e-15)
+
+
 def test_euler_round_trip_every_order():
     q = random_quats(200, 6)
     for order in ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"):
