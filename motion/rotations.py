@@ -73,24 +73,22 @@ def to_euler(q: np.ndarray, order: str) -> np.ndarray:
     return e.reshape(*shape, 3)
 
 
+# q_a * q_b = L(q_a) @ q_b with L(q_a) the 4x4 left-multiplication matrix of q_a, built
+# by one gather and one sign flip: three numpy calls whatever the batch shape.
+_LEFT_INDEX = np.array([[3, 2, 1, 0], [2, 3, 0, 1], [1, 0, 3, 2], [0, 1, 2, 3]])
+_LEFT_SIGN = np.array([[1.0, -1.0, 1.0, 1.0], [1.0, 1.0, -1.0, 1.0], [-1.0, 1.0, 1.0, 1.0], [-1.0, -1.0, -1.0, 1.0]])
+
+
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product a * b (apply b first, then a), broadcasting leading shapes.
 
     Written out in numpy rather than through scipy's Rotation because it is on the
-    per-frame path of every performer: for a 22-bone pose it measured ~4x faster
-    (building Rotation objects dominates at that size). tests/test_rotations.py checks it
-    against scipy.
+    per-frame path of every performer, where building Rotation objects dominated (measured
+    ~4x slower for a 22-bone pose). tests/test_rotations.py checks it against scipy.
     """
     a = np.asarray(a, np.float64)
     b = np.asarray(b, np.float64)
-    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return np.stack([
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    ], axis=-1)
+    return (a[..., _LEFT_INDEX] * _LEFT_SIGN @ b[..., None])[..., 0]
 
 
 def inverse(q: np.ndarray) -> np.ndarray:
@@ -108,6 +106,25 @@ def apply(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     v = np.broadcast_to(v, (*shape, 3))
     r, _ = _flat(q)
     return r.apply(np.array(v.reshape(-1, 3))).reshape(*shape, 3)  # scipy needs a writable buffer
+
+
+def exp_map(rotvec: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) (axis times angle in radians) to quaternions (..., 4)."""
+    v = np.asarray(rotvec, np.float64)
+    angle = np.linalg.norm(v, axis=-1, keepdims=True)
+    # sin(angle/2)/angle, with its limit 1/2 - angle^2/48 near zero.
+    scale = np.where(angle < 1e-6, 0.5 - angle * angle / 48.0, np.sin(0.5 * angle) / np.where(angle < 1e-6, 1.0, angle))
+    return np.concatenate([v * scale, np.cos(0.5 * angle)], axis=-1)
+
+
+def log_map(q: np.ndarray) -> np.ndarray:
+    """Quaternions (..., 4) to rotation vectors (..., 3) of the short arc (angle <= pi)."""
+    q = np.asarray(q, np.float64)
+    q = np.where(q[..., 3:] < 0.0, -q, q)
+    s = np.linalg.norm(q[..., :3], axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., 3:])
+    scale = np.where(s < 1e-12, 2.0, angle / np.where(s < 1e-12, 1.0, s))
+    return q[..., :3] * scale
 
 
 def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray | float) -> np.ndarray:

@@ -39,7 +39,6 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from . import rotations as rot
 
@@ -106,14 +105,6 @@ def _spring(offset: np.ndarray, velocity: np.ndarray, omega: float, n: int):
     return x, x[-1].copy(), v[-1].copy()
 
 
-def _log(q: np.ndarray) -> np.ndarray:
-    return Rotation.from_quat(q).as_rotvec()
-
-
-def _exp(v: np.ndarray) -> np.ndarray:
-    return Rotation.from_rotvec(v.reshape(-1, 3)).as_quat().reshape(*v.shape[:-1], 4)
-
-
 class SeamBlender:
     """Assembles output frames from restyled words (see the module docstring).
 
@@ -134,7 +125,9 @@ class SeamBlender:
         self._offset = np.zeros((num_bones, 3))
         self._offset_velocity = np.zeros((num_bones, 3))
         self._shown: np.ndarray | None = None  # restyled pose shown for the previous frame
-        self._residual = rot.identity((num_bones,))  # restyled * input^-1, last known
+        self._residual = rot.identity((num_bones,))  # restyled * input^-1 while no word
+        self._last_restyled: np.ndarray | None = None  # the last pose from a word, and
+        self._last_input: np.ndarray | None = None  # its input: their ratio is carried on
         self._omega = 0.0 if not settings.decay_frames else 1.0 / float(settings.decay_frames)
         self.mix = 0.0
         self.late_frames = 0
@@ -183,6 +176,8 @@ class SeamBlender:
     def _restyled_run(self, t: int, end: int, word: np.ndarray | None, inputs: np.ndarray) -> np.ndarray:
         """Restyled poses for a run of frames from one word, seam offset applied."""
         if word is None:
+            if self._serving is not None and self._last_restyled is not None:
+                self._residual = rot.multiply(self._last_restyled, rot.inverse(self._last_input))
             self._serving = None
             poses = rot.multiply(self._residual, inputs)
         else:
@@ -192,18 +187,20 @@ class SeamBlender:
             elif end != self._serving and self._shown is not None and index > 0:
                 # Switch of word: carry the new word onto what was shown a frame ago.
                 # The offset's velocity carries over, so the motion does not kink either.
-                self._offset = _log(rot.multiply(self._shown, rot.inverse(word[index - 1])))
+                self._offset = rot.log_map(rot.multiply(self._shown, rot.inverse(word[index - 1])))
             self._serving = end
             offsets, self._offset, self._offset_velocity = _spring(
                 self._offset, self._offset_velocity, self._omega, len(inputs))
-            poses = rot.multiply(_exp(offsets), word[index:index + len(inputs)])
-            self._residual = rot.multiply(poses[-1], rot.inverse(inputs[-1]))
+            poses = rot.multiply(rot.exp_map(offsets), word[index:index + len(inputs)])
+            self._last_restyled, self._last_input = poses[-1], inputs[-1]
         self._shown = poses[-1]
         return poses
 
     def _mix_run(self, inputs: np.ndarray, restyled: np.ndarray, available: bool, intensity: float) -> np.ndarray:
         """Move ``mix`` towards its target by at most one crossfade step per frame."""
-        target = float(np.clip(intensity, 0.0, 1.0)) if available else 0.0
+        target = min(max(float(intensity), 0.0), 1.0) if available else 0.0
+        if self.mix == target and target in (0.0, 1.0):  # the common, settled case
+            return restyled if target == 1.0 else inputs.copy()
         step = 1.0 / self.settings.crossfade_frames
         ramp = step * np.arange(1, len(inputs) + 1)
         mix = np.minimum(target, self.mix + ramp) if target > self.mix else np.maximum(target, self.mix - ramp)

@@ -16,6 +16,15 @@ def test_multiply_matches_scipy():
     assert rot.angle_between(rot.multiply(a, b), expected).max() < 1e-9
 
 
+def test_exp_and_log_maps_match_scipy():
+    q = random_quats(300, 7)
+    v = Rotation.from_quat(q).as_rotvec()
+    v[:5] *= 1e-9  # near identity
+    assert np.abs(rot.log_map(Rotation.from_rotvec(v).as_quat()) - v).max() < 1e-9
+    assert rot.angle_between(rot.exp_map(v), Rotation.from_rotvec(v).as_quat()).max() < 1e-9
+    assert np.abs(rot.log_map(-Rotation.from_rotvec(v).as_quat()) - v).max() < 1e-9  # sign of q
+
+
 def test_slerp_matches_scipy_including_short_arc_and_near_equal():
     a, b = random_quats(300, 3), random_quats(300, 4)
     b[:50] = -b[:50]  # same rotations, opposite sign: must take the short arc
