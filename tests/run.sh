@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-apt_packages=(liblo-tools libegl1 libegl-mesa0 libgl1-mesa-dri)
+apt_packages=(liblo-tools libegl1 libegl-mesa0 libgl1-mesa-dri xvfb)
 if ! dpkg -s "${apt_packages[@]}" >/dev/null 2>&1; then
   sudo=""; [ "$(id -u)" -eq 0 ] || sudo=sudo
   $sudo apt-get update -qq
