@@ -24,7 +24,8 @@ def register(subparsers) -> None:
                                           "daemon with the shipped model and sends VMC to 127.0.0.1:39539.")
     d.add_argument("clip", nargs="?", default=None, help="a BVH file (default: a dataset-2 normal walk)")
     d.add_argument("--clip", dest="clip_option", default=None, metavar="PATH", help="same as CLIP")
-    d.add_argument("--view", action="store_true", help="also open the viewer (needs stylecast[viewer] and a display)")
+    d.add_argument("--no-view", dest="view", action="store_false",
+                   help="do not open the viewer window (it opens when stylecast[viewer] and a display are there)")
     d.add_argument("--speed", type=float, default=1.0, help="replay speed (default 1.0)")
     _daemon_flags(d)
     d.set_defaults(func=cmd_demo)

@@ -3,7 +3,9 @@
 Finds a Bandai clip (argument, ``--clip``, ``$STYLECAST_DATA``, or ``../shared/data``
 next to the repository or the working directory), replays it looping through the daemon
 with the shipped model (pass-through with a clear message if the checkpoint is not
-there) and sends VMC to 127.0.0.1:39539 (any VMC marionette, or the viewer).
+there) and sends VMC to 127.0.0.1:39539 (any VMC marionette, or the viewer) and the
+unrestyled input to 127.0.0.1:39541; with the viewer installed and a display, it opens
+the viewer on both, side by side.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from .restylers import DEFAULT_MODEL, IdentityRestyler, load_restyler
 log = logging.getLogger("stylecast.daemon")
 DEFAULT_CLIP = "bandai/dataset-2/data/dataset-2_walk_normal_001.bvh.gz"
 DEFAULT_OUT = "vmc://127.0.0.1:39539"
+DEFAULT_INPUT_PORT = 39541  # the unrestyled input, for the viewer's before/after
 
 
 def data_roots() -> list[Path]:
@@ -63,7 +66,7 @@ def demo_restyler(name: str):
         return IdentityRestyler()
 
 
-def open_viewer() -> subprocess.Popen | None:
+def open_viewer(input_port: int | None) -> subprocess.Popen | None:
     try:
         import stylecast.viewer  # noqa: F401
         from stylecast.cli import build_parser
@@ -76,9 +79,11 @@ def open_viewer() -> subprocess.Popen | None:
         print("stylecast demo: this install has no viewer command", file=sys.stderr)
         return None
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or sys.platform in ("win32", "darwin")):
-        print("stylecast demo: no display found for the viewer; continuing without it", file=sys.stderr)
+        print("stylecast demo: no display for the viewer window; to see the motion headless run "
+              "`stylecast view --snapshot demo.png --after 3` while the demo runs", file=sys.stderr)
         return None
-    return subprocess.Popen([sys.executable, "-m", "stylecast", name])
+    extra = ["--input-port", str(input_port)] if input_port else []
+    return subprocess.Popen([sys.executable, "-m", "stylecast", name, *extra])
 
 
 def run_demo(args, config: DaemonConfig) -> int:
@@ -90,13 +95,16 @@ def run_demo(args, config: DaemonConfig) -> int:
     clip_path = find_clip(args.clip_option or args.clip)
     if not config.out:
         config.out = [DEFAULT_OUT]
+    if not config.out_input:
+        config.out_input = [f"vmc://127.0.0.1:{DEFAULT_INPUT_PORT}"]
     model = config.model or DEFAULT_MODEL
     restyler = demo_restyler(model)
     source = ReplaySource(humanoid_motion(read_bvh(clip_path)), clip_path.name.split(".")[0],
                           loop=True, speed=args.speed)
     print(f"stylecast demo: replaying {clip_path} (looping) -> {', '.join(config.out)}; "
           f"Ctrl-C to stop", file=sys.stderr)
-    viewer = open_viewer() if args.view else None
+    input_port = int(config.out_input[0].rsplit(":", 1)[1]) if config.out_input else None
+    viewer = open_viewer(input_port) if args.view else None
     try:
         return run_daemon(config, restyler=restyler, sources=[source])
     finally:
