@@ -46,6 +46,7 @@ from .status import LatencyWindow, status_line, status_messages
 
 log = logging.getLogger("stylecast.daemon")
 STATUS_REPLIES_PER_TICK = 4  # bounds the work a status-request flood can cause
+CONTROL_ERRORS_LOGGED = 10  # refused commands logged one by one; after that every 1000th
 MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not sent late
 
 
@@ -75,6 +76,9 @@ class Daemon:
         self.control_errors = 0
         self._pending_model = None
         self._model_lock = threading.Lock()
+        self._loader_busy = False  # one model loader thread at a time (see _load_model_async)
+        self._requested_model: str | None = None
+        self.model_requests_replaced = 0
         self._t0: float | None = None
         self._next_status = 0.0
         try:
@@ -132,7 +136,7 @@ class Daemon:
     @property
     def finished(self) -> bool:
         """Every source has ended and every session has shown its last frame."""
-        return all(s.source.finished and s.out_t is not None and s.out_t >= s.cutter.frames_seen
+        return all(s.source.finished and s.out_t is not None and s.out_t >= s.frames_in
                    for s in self.sessions)
 
     def run(self, stop: threading.Event | None = None, duration: float = 0.0) -> None:
@@ -213,8 +217,7 @@ class Daemon:
                 else:
                     self.apply(command, value, performer)
             except UserError as exc:
-                self.control_errors += 1
-                log.warning("control: %s", exc)
+                self._control_error(str(exc))
 
     def apply(self, command: str, value, performer: str | None = None) -> None:
         """Apply one setting live (also the API tests and embedders use)."""
@@ -238,18 +241,43 @@ class Daemon:
         else:
             raise UserError(f"unknown control command {command!r}")
 
+    def _control_error(self, message: str) -> None:
+        # Counted always, logged rarely: a sender repeating a bad command, or a flood of
+        # them, must not become a log line per packet (hardening, issue 7).
+        self.control_errors += 1
+        n = self.control_errors
+        if n <= CONTROL_ERRORS_LOGGED:
+            log.warning("control: %s", message)
+        elif n % 1000 == 0:
+            log.warning("control: %s (%d refused commands so far; not all are logged)", message, n)
+
     def _load_model_async(self, name: str) -> None:
-        def load():
+        # One loader thread at a time; requests arriving while it works are coalesced into
+        # the latest (hardening: a flood of /stylecast/model used to start one thread per
+        # packet, each reading a checkpoint).
+        with self._model_lock:
+            if self._loader_busy:
+                if self._requested_model is not None:
+                    self.model_requests_replaced += 1
+                self._requested_model = name
+                return
+            self._loader_busy = True
+        threading.Thread(target=self._load_models, args=(name,), name="stylecast-model-loader",
+                         daemon=True).start()
+
+    def _load_models(self, name: str | None) -> None:
+        while name is not None:
             try:
                 model = self.model_loader(name)
             except Exception as exc:  # a bad name or checkpoint must not stop the show
-                self.control_errors += 1
-                log.warning("control: model %r not loaded: %s", name, exc)
-                return
+                self._control_error(f"model {name!r} not loaded: {exc}")
+            else:
+                with self._model_lock:
+                    self._pending_model = model
             with self._model_lock:
-                self._pending_model = model
-
-        threading.Thread(target=load, name="stylecast-model-loader", daemon=True).start()
+                name, self._requested_model = self._requested_model, None
+                if name is None:
+                    self._loader_busy = False
 
     # -- status -------------------------------------------------------------------------
     def snapshot(self) -> dict:

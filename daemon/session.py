@@ -79,17 +79,26 @@ class Session:
 
     # -- input side -------------------------------------------------------------------
     def ingest(self, now: float) -> list[tuple[int, np.ndarray]]:
-        """Pull the source's new frames; return the words (end, word) they completed."""
+        """Pull the source's new frames; return the words (end, word) they completed.
+
+        A source that has ended is held: its last frame is pushed again once per tick
+        until the output has passed the last real frame, so the words that serve the
+        final frames are cut from real motion plus a held pose, exactly as offline
+        ``restyle_stream`` pads a clip's end."""
         words = []
         for frame in self.source.poll(now):
             words += self.push(frame)
+        if self.source.finished and self._inputs and self.cutter.frames_seen < self.frames_in + self.settings.delay:
+            _, arrival, root, rotations = self._inputs[-1]
+            words += self.push(PoseFrame(self.performer, arrival, root, rotations), held=True)
         return words
 
-    def push(self, frame: PoseFrame) -> list[tuple[int, np.ndarray]]:
+    def push(self, frame: PoseFrame, held: bool = False) -> list[tuple[int, np.ndarray]]:
         t = self.cutter.frames_seen
         rotations = np.asarray(frame.rotations, dtype=np.float64)
         self._inputs.append((t, float(frame.timestamp), np.asarray(frame.root_position, np.float64), rotations))
-        self.frames_in += 1
+        if not held:
+            self.frames_in += 1
         out = self.cutter.push(rotations)
         if out is None or self.bypass:
             return []
@@ -110,10 +119,13 @@ class Session:
     # -- output side ------------------------------------------------------------------
     def render(self, drain: bool = False) -> OutputFrame | None:
         """The output frame for this tick: a new one, the held last one, or None before
-        the first ``delay`` frames have arrived. ``drain`` (the source has ended): the
-        last ``delay`` frames follow without waiting for input that will never come."""
+        the first ``delay`` frames have arrived. ``drain`` (the source has ended): its
+        held frames (see ``ingest``) carry the last ``delay`` real frames out, and nothing
+        past the last real frame is sent."""
         newest = self.cutter.frames_seen - 1
-        target = newest if drain else newest - self.settings.delay
+        target = newest - self.settings.delay
+        if drain:
+            target = min(target, self.frames_in - 1)
         self.new_frame = False
         if target < 0:
             return None

@@ -1,1 +1,12 @@
-"""stylecast.models — see ARCHITECTURE.md in the README."""
+"""stylecast.models: the CycleGAN restyler of the source paper (cycle-consistency
+temporal-difference loss): representation, networks, losses, data, training, checkpoints,
+offline restyling and evaluation. Torch is imported only where networks run.
+
+    from stylecast.models import Restyler
+    r = Restyler.load()            # models/checkpoints/normal2exhausted, normal -> exhausted
+    out = r.restyle_words(words)   # (B, 60, 22, 4) humanoid local quaternions xyzw
+"""
+
+from .restyler import Restyler
+
+__all__ = ["Restyler"]

@@ -22,8 +22,9 @@ and in velocity at every switch and settles onto B's own motion; unlike a crossf
 overlapping windows this needs no extra latency, so delay = hop is enough. At hop 1 the
 switch comes every frame and the spring acts as a smoothing filter on the words.
 
-A source that stalls is held: its last frame is pushed again each frame, so words keep
-coming and the output stays continuous (offline, the end of a clip is handled the same).
+A source that ends is held: its last frame is pushed again each frame until a word has
+covered its final frame, so the last frames are restyled like the others (offline, the
+end of a clip is padded the same way).
 
 Pass-through and restyled output are mixed by ``mix`` in [0, 1]: it moves towards the
 requested intensity (0 in bypass, when no word is available yet or when a word is late)

@@ -57,9 +57,17 @@ def run_daemon(clip: Clip, restyler, hop: int = 15, performers: int = 1, tap=Non
     return daemon, frames
 
 
-def offline(clip: Clip, restyler, hop: int, **settings) -> np.ndarray:
-    return restyle_stream(clip.rotations, restyler.restyle_words,
-                          BlendSettings(hop=hop, crossfade_frames=30, **settings))
+def offline(clip: Clip, restyler, hop: int) -> np.ndarray:
+    """What `stylecast restyle --live --hop HOP` computes for this humanoid motion."""
+    from stylecast.models.restyle import restyle_rotations
+
+    return restyle_rotations(clip.rotations, restyler.restyle_words, hop, crossfade_frames=30, live=True)
+
+
+def test_restyle_live_is_the_shared_stream_code():
+    clip, restyler = walk_clip(200), StandInRestyler()
+    direct = restyle_stream(clip.rotations, restyler.restyle_words, BlendSettings(hop=15, crossfade_frames=30))
+    assert rot.angle_between(offline(clip, StandInRestyler(), 15), direct).max() < 1e-9
 
 
 @pytest.mark.parametrize("hop", [1, 15, 60])
@@ -72,8 +80,7 @@ def test_daemon_output_equals_offline_restyle(hop):
     live = np.stack([f.rotations for f in out])
     expected = offline(clip, restyler, hop)
     assert rot.angle_between(live, expected).max() < 1e-4  # degrees
-    if hop > 1:  # (at hop 1 the offset blend re-anchors every frame: see the daemon's report)
-        assert rot.angle_between(live, clip.rotations).max() > 1.0  # the stand-in really restyles
+    assert rot.angle_between(live, clip.rotations).max() > 1.0  # the stand-in really restyles
     np.testing.assert_array_equal(np.stack([f.root_position for f in out]), clip.root_positions)
     assert daemon.sessions[0].blender.late_frames == 0 or hop == 60
 
@@ -87,6 +94,28 @@ def test_daemon_output_equals_offline_restyle_with_the_shipped_model():
     _, frames = run_daemon(clip, restyler, hop=15)
     live = np.stack([f.rotations for f in frames["p0"]])
     assert rot.angle_between(live, offline(clip, restyler, 15)).max() < 1e-4
+
+
+@pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")
+def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root):
+    """The real path end to end: a Bandai BVH replayed by the daemon (bvh source: read,
+    retarget, resample to 60 fps) against `stylecast restyle --live` of the same file, in
+    humanoid space at 60 fps (what `restyle` then writes back onto the source rig)."""
+    from stylecast.drivers.bvh_replay import humanoid_motion
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.bvh import read_bvh
+    from stylecast.motion.resample import resample
+
+    path = sorted((bandai_root / "dataset-2" / "data").glob("dataset-2_walk_normal_*.bvh.gz"))[0]
+    motion = humanoid_motion(read_bvh(path))
+    restyler = Restyler.load(str(CHECKPOINT))
+    for hop in (1, 15):
+        _, frames = run_daemon(motion, restyler, hop=hop)
+        live = np.stack([f.rotations for f in frames["p0"]])
+        expected = offline(resample(motion, 60.0), restyler, hop)
+        assert live.shape == expected.shape
+        assert rot.angle_between(live, expected).max() < 1e-4
+        assert rot.angle_between(live[120:], resample(motion, 60.0).rotations[120:]).max() > 1.0  # restyled
 
 
 def test_several_performers_are_batched_and_each_equals_offline():

@@ -1,0 +1,154 @@
+"""Model benchmarks: generator cost per word and per batch of 64, the Restyler's full
+batch call (numpy in and out), and offline `restyle` throughput. Prints a table; not a test.
+
+    python bench/bench_models.py [--model PATH|NAME] [--repeats 30]
+
+Everything runs on ONE torch thread (torch.set_num_threads(1)), the live budget's setting:
+one word <= 2 ms, 64 words <= 40 ms. Times are medians over --repeats runs after warm-up.
+The machine is shared, so the load average is printed with the results.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = REPO.parent / "shared" / "data" / "bandai" / "dataset-2" / "data"
+
+
+def median_ms(fn, repeats: int, warmup: int = 5) -> tuple[float, float]:
+    """Median wall-clock and median process-CPU milliseconds per call. On a shared,
+    loaded machine the CPU time is what the call itself costs; wall time includes waiting
+    for a core."""
+    for _ in range(warmup):
+        fn()
+    wall, cpu = [], []
+    for _ in range(repeats):
+        t, c = time.perf_counter(), time.process_time()
+        fn()
+        wall.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
+    return 1000 * statistics.median(wall), 1000 * statistics.median(cpu)
+
+
+def throughput(fn, frames: int) -> tuple[float, float]:
+    t, c = time.perf_counter(), time.process_time()
+    fn()
+    return frames / (time.perf_counter() - t), frames / max(time.process_time() - c, 1e-9)
+
+
+def cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def load_restyler(name):
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.errors import UserError
+
+    try:
+        return Restyler.load(name), "trained"
+    except UserError as exc:
+        # No shipped model yet: an untrained one of the same size costs the same.
+        from stylecast.models import checkpoint as ckpt
+        from stylecast.models.train import Trainer, TrainConfig, model_metadata
+        from stylecast.motion import rotations as rot
+
+        print(f"({exc} -- timing an untrained model of the default size)")
+        words = rot.identity((4, 60, 22))
+        tr = Trainer(TrainConfig(), words, words, device="cpu")
+        path = Path("/tmp/bench_models_untrained.safetensors")
+        ckpt.save_checkpoint(path, tr.model_tensors(True), model_metadata(tr.cfg, tr.rep), sidecar=False)
+        return Restyler.load(path), "untrained"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", default=None)
+    ap.add_argument("--repeats", type=int, default=30)
+    args = ap.parse_args()
+
+    import torch
+
+    torch.set_num_threads(1)
+    from stylecast.models.networks import count_parameters, to_channels
+    from stylecast.models.restyle import restyle_clip, restyle_rotations
+    from stylecast.motion import rotations as rot
+
+    restyler, kind = load_restyler(args.model)
+    G = restyler.generator()
+    rng = np.random.default_rng(0)
+    angles = np.cumsum(rng.normal(0, 1.0, (64, 60, 22, 3)), axis=1) + rng.normal(0, 20, (64, 1, 22, 3))
+    words = rot.canonical_hemisphere(rot.from_euler(angles, "XZY"), axis=1)
+    feats = restyler.rep.encode(words)
+    x1 = to_channels(torch.from_numpy(feats[:1]))
+    x64 = to_channels(torch.from_numpy(feats))
+
+    rows = []
+    with torch.no_grad():
+        rows.append(("generator forward, 1 word", median_ms(lambda: G(x1), args.repeats), "<= 2 ms"))
+        rows.append(("generator forward, 64 words", median_ms(lambda: G(x64), args.repeats), "<= 40 ms"))
+    rows.append(("restyle_words, 1 word (numpy in/out)",
+                 median_ms(lambda: restyler.restyle_words(words[:1]), args.repeats), ""))
+    rows.append(("restyle_words, 64 words (numpy in/out)",
+                 median_ms(lambda: restyler.restyle_words(words), max(5, args.repeats // 3)), ""))
+
+    # Offline throughput: the stream part alone (humanoid rotations at 60 fps), and the
+    # whole `restyle` path on a shared clip looped to about a minute (read/write excluded).
+    T = 3600
+    long = np.concatenate([words[i] for i in range(T // 60)])
+    long = rot.canonical_hemisphere(long)
+    thr = []
+    for hop in (20, 60):
+        thr.append((f"stream restyle at 60 fps, hop {hop} ({T} frames)",
+                    *throughput(lambda: restyle_rotations(long, restyler.restyle_words, hop=hop), T)))
+    thr.append((f"  stream code alone (identity model), hop 20",
+                *throughput(lambda: restyle_rotations(long, lambda w: w, hop=20), T)))
+    clip_path = DATA / "dataset-2_walk_normal_001.bvh.gz"
+    if clip_path.exists():
+        from stylecast.motion.bvh import read_bvh
+
+        clip = read_bvh(clip_path)
+        reps = max(1, int(60 * clip.fps) // clip.num_frames)
+        idx = np.concatenate([np.arange(clip.num_frames) if i % 2 == 0 else np.arange(clip.num_frames)[::-1]
+                              for i in range(reps)])
+        looped = clip.replace(rotations=clip.rotations[idx], root_positions=clip.root_positions[idx],
+                              translations=None if clip.translations is None else clip.translations[idx])
+        for hop in (20, 60):
+            wall, cpu = throughput(lambda: restyle_clip(looped, restyler, hop=hop), looped.num_frames)
+            thr.append((f"`restyle` path, hop {hop}, Bandai {looped.fps:g} fps clip ({looped.num_frames} frames)",
+                        wall, cpu))
+            k = 60 / looped.fps
+            thr.append(("  same, counted in 60 fps frames processed", wall * k, cpu * k))
+
+    print(f"stylecast model benchmark ({kind} model {restyler.name}, generator "
+          f"{count_parameters(G):,} parameters, representation {restyler.rep.name})")
+    print(f"machine: {cpu_name()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+          f"torch {torch.__version__}, 1 torch thread, load average {os.getloadavg()[0]:.2f} (shared machine)")
+    print()
+    w = max(len(r[0]) for r in rows + thr) + 2
+    print(f"{'inference (median of ' + str(args.repeats) + ')':<{w}}{'wall ms':>10}{'CPU ms':>10}  goal")
+    for name, (wall, cpu), goal in rows:
+        print(f"{name:<{w}}{wall:>10.2f}{cpu:>10.2f}  {goal}")
+    print()
+    print(f"{'offline throughput':<{w}}{'frames/s':>10}{'per CPU s':>10}  (goal >= 20,000 frames/s)")
+    for name, wall, cpu in thr:
+        print(f"{name:<{w}}{wall:>10,.0f}{cpu:>10,.0f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

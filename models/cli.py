@@ -1,0 +1,119 @@
+"""`stylecast train`, `stylecast restyle` and `stylecast eval`. Torch is imported inside
+the command functions so `stylecast --help` stays fast."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def _positive_int(s: str) -> int:
+    v = int(s)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {s}")
+    return v
+
+
+def _unit(s: str) -> float:
+    v = float(s)
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {s}")
+    return v
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("train", help="train a CycleGAN restyler between two styles of the Bandai dataset-2")
+    p.add_argument("--style-a", default="normal", help="style A (default normal)")
+    p.add_argument("--style-b", default="exhausted", help="style B (default exhausted)")
+    p.add_argument("--loss", choices=("cycle-diff", "coherence"), default="cycle-diff",
+                   help="cycle-diff: the paper's temporal-difference loss; coherence: the Adult2Child baseline")
+    p.add_argument("--epochs", type=_positive_int, default=90)
+    p.add_argument("--batch-size", type=_positive_int, default=32)
+    p.add_argument("--words-per-epoch", type=_positive_int, default=1024,
+                   help="words of each style drawn per epoch (default 1024)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--representation", choices=("euler", "6d"), default="euler")
+    p.add_argument("--out", type=Path, required=True, help="output folder (checkpoints, losses.csv, model)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last epoch")
+    p.add_argument("--max-words", type=_positive_int, help="use at most N training words per style (tiny CI runs)")
+    p.add_argument("--device", default="auto", help="auto (CUDA when present), cpu or cuda[:N]")
+    p.add_argument("--threads", type=_positive_int, help="torch CPU threads (default: torch's choice)")
+    p.add_argument("--data", type=Path, help="the Bandai dataset-2 'data' folder (default ../shared/...)")
+    p.add_argument("--cache", type=Path, help="cache folder for decoded clips (default ~/.cache/stylecast)")
+    p.add_argument("--no-progress", action="store_true", help="print one line per epoch instead of a bar")
+    p.set_defaults(func=run_train)
+
+    p = sub.add_parser("restyle", help="restyle a BVH clip with a trained model")
+    p.add_argument("input", type=Path)
+    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("--model", default=None, help="checkpoint path or shipped name (default normal2exhausted)")
+    p.add_argument("--direction", choices=("a2b", "b2a"), default="a2b")
+    p.add_argument("--intensity", type=_unit, default=1.0, help="0 = input, 1 = fully restyled")
+    p.add_argument("--hop", type=_positive_int, default=15,
+                   help="frames between words (1..60; 60 = no overlap); default 15, as `serve`")
+    p.add_argument("--fps", type=float, help="frame rate of the output (default: the input's)")
+    p.add_argument("--live", action="store_true",
+                   help="render as the live daemon does (start in pass-through and fade in, no mirrored "
+                        "pre-roll): the same frames `stylecast serve` sends for this clip")
+    p.add_argument("--map", type=Path, help="JSON/TOML table of source joint name -> humanoid bone")
+    p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
+    p.set_defaults(func=run_restyle)
+
+    p = sub.add_parser("eval", help="evaluate the proposed model against the baseline on held-out files")
+    p.add_argument("--model", default=None, help="proposed model (default normal2exhausted)")
+    p.add_argument("--baseline", default="normal2exhausted-coherence", help="baseline model")
+    p.add_argument("--out", type=Path, required=True, help="report folder (report.md, plots, metrics.json)")
+    p.add_argument("--max-files", type=_positive_int, help="evaluate on at most N held-out files per style")
+    p.add_argument("--hop", type=_positive_int, default=20, help="hop of the blended restyle")
+    p.add_argument("--data", type=Path)
+    p.add_argument("--cache", type=Path)
+    p.add_argument("--threads", type=_positive_int)
+    p.add_argument("--seed", type=int, default=0, help="seed of the evaluation classifiers")
+    p.set_defaults(func=run_eval)
+
+
+def _threads(n):
+    if n:
+        import torch
+
+        torch.set_num_threads(n)
+
+
+def run_train(args) -> int:
+    from .networks import NetworkConfig
+    from .train import TrainConfig, load_training_words, train
+
+    _threads(args.threads)
+    cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss, epochs=args.epochs,
+                      batch_size=args.batch_size, words_per_epoch=args.words_per_epoch, seed=args.seed,
+                      representation=args.representation, max_words=args.max_words, network=NetworkConfig())
+    if args.style_a == args.style_b:
+        from stylecast.motion.errors import UserError
+
+        raise UserError(f"--style-a and --style-b are both {args.style_a!r}; choose two different styles")
+    sets = load_training_words(cfg, args.data, args.cache, progress=not args.no_progress)
+    train(cfg, args.out, sets[(cfg.style_a, "train")].words, sets[(cfg.style_b, "train")].words,
+          sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,
+          resume=args.resume, device=args.device, progress=not args.no_progress)
+    return 0
+
+
+def run_restyle(args) -> int:
+    from .restyle import restyle_file
+
+    _threads(args.threads)
+    info = restyle_file(args.input, args.output, model=args.model, direction=args.direction,
+                        intensity=args.intensity, hop=args.hop, fps=args.fps, map_file=args.map, live=args.live)
+    print(f"wrote {args.output}: {info['joints']} joints, {info['frames']} frames at {info['fps']:g} fps "
+          f"({info['model']}, {info['direction']}: {info['from']} -> {info['to']})")
+    return 0
+
+
+def run_eval(args) -> int:
+    from .eval import evaluate
+
+    _threads(args.threads)
+    path = evaluate(args.model, args.baseline, args.out, max_files=args.max_files, hop=args.hop,
+                    data_dir=args.data, cache_dir=args.cache, seed=args.seed)
+    print(f"wrote {path}")
+    return 0

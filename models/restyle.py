@@ -1,0 +1,129 @@
+"""Offline restyling of a BVH clip (``stylecast restyle``).
+
+read -> ``Retarget.for_clip`` -> humanoid -> resample to 60 fps -> the shared window-and-
+blend stream code (``stylecast.motion.words.restyle_stream``, the same cutter and seam
+blender the daemon runs live) -> back to the output frame rate -> ``Retarget.to_source``
+with the original clip as template -> written with the input's skeleton and joint names.
+The root trajectory passes through untouched.
+
+The live stream starts in pass-through and fades the restyled output in once the first
+word is due; an offline clip has no "before", so it is padded at the start (and the end)
+by mirroring its own motion. Every real frame is then served by a complete word at full
+intensity, and a clip shorter than one word is still restyled.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from stylecast.motion import rotations as rot
+from stylecast.motion.errors import UserError
+
+WORD_LENGTH = 60
+FPS = 60.0
+
+
+def mirror_indices(num_frames: int, before: int, after: int) -> np.ndarray:
+    """Frame indices that extend [0, T) by reflection at both ends (any pad length)."""
+    return np.pad(np.arange(num_frames), (before, after), mode="reflect")
+
+
+CROSSFADE_FRAMES = 30
+
+
+def padding(hop: int, crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None) -> tuple[int, int]:
+    """Mirrored frames added (before, after) a clip. Before the first real frame: one word,
+    then long enough for the stream's fade-in from pass-through to finish and for the seam
+    spring, which starts by carrying the first word onto the pass-through pose, to settle
+    (critically damped: (1 + k/d) e^(-k/d) < 0.3 % after k = 8 d frames). After the last
+    real frame: one hop, so a word covers it with real motion rather than a held pose."""
+    from stylecast.motion.words import BlendSettings
+
+    decay = max(BlendSettings(hop=hop).decay_frames, decay_frames or 0.0)  # one grid for blend on and off
+    return WORD_LENGTH + max(crossfade_frames, int(np.ceil(8 * decay))), hop
+
+
+def word_switches(num_frames: int, hop: int, crossfade_frames: int = CROSSFADE_FRAMES,
+                  decay_frames: float | None = None) -> np.ndarray:
+    """Boolean (T-1,): True where frames t-1 and t of a restyled clip come from different
+    words (the seams the paper's section 4.5 is about)."""
+    before, _ = padding(hop, crossfade_frames, decay_frames)
+    p = np.arange(num_frames) + before
+    first = WORD_LENGTH - 1
+    serving = np.where(p <= first, first, first + -(-(p - first) // hop) * hop)
+    return serving[1:] != serving[:-1]
+
+
+def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = 15, intensity: float = 1.0,
+                      crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
+                      live: bool = False) -> np.ndarray:
+    """Humanoid rotations (T, J, 4) at 60 fps -> restyled (T, J, 4), any T >= 1.
+    ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
+    mirrored padding, so the result is frame for frame what the daemon sends for the same
+    motion (pass-through until the first word is due, then the fade-in)."""
+    from stylecast.motion.words import BlendSettings, restyle_stream
+
+    if not 1 <= hop <= WORD_LENGTH:
+        raise UserError(f"--hop must be between 1 and {WORD_LENGTH} frames, got {hop}")
+    T = len(rotations)
+    settings = BlendSettings(hop=hop, crossfade_frames=crossfade_frames, decay_frames=decay_frames)
+    before, after = (0, 0) if live else padding(hop, settings.crossfade_frames, settings.decay_frames)
+    idx = mirror_indices(T, before, after)
+    padded = rot.canonical_hemisphere(np.asarray(rotations, dtype=np.float64)[idx])
+    out = restyle_stream(padded, restyle_words, settings, intensity=intensity)
+    return out[before:before + T]
+
+
+def sample_at(rotations: np.ndarray, fps: float, times: np.ndarray) -> np.ndarray:
+    """Slerp a (T, J, 4) sequence at ``fps`` at the given times (seconds), clamped."""
+    pos = np.clip(np.asarray(times, dtype=np.float64) * fps, 0.0, len(rotations) - 1)
+    lo = np.floor(pos + 1e-9).astype(int)
+    lo = np.minimum(lo, len(rotations) - 1)
+    hi = np.minimum(lo + 1, len(rotations) - 1)
+    frac = np.clip(pos - lo, 0.0, 1.0)
+    J = rotations.shape[1]
+    q0 = rotations[lo]
+    q1 = rotations[hi]
+    q1 = np.where(np.sum(q0 * q1, axis=-1, keepdims=True) < 0, -q1, q1)
+    return rot.slerp(q0, q1, np.repeat(frac[:, None], J, axis=1))
+
+
+def restyle_clip(clip, restyler, hop: int = 15, intensity: float = 1.0, fps: float | None = None,
+                 user_map: dict | None = None, live: bool = False):
+    """A source clip -> the restyled clip on the same skeleton (at ``fps`` or the input's)."""
+    from stylecast.motion.humanoid import Retarget
+    from stylecast.motion.resample import resample
+
+    retarget = Retarget.for_clip(clip, user_map)
+    humanoid = retarget.to_humanoid(clip)
+    h60 = resample(humanoid, FPS)
+    restyled60 = restyle_rotations(h60.rotations, restyler.restyle_words, hop, intensity, live=live)
+    out_fps = float(fps) if fps else clip.fps
+    if abs(out_fps - clip.fps) < 1e-9:
+        template, h_template = clip, humanoid
+    else:
+        template = resample(clip, out_fps)
+        h_template = retarget.to_humanoid(template)
+    times = np.arange(template.num_frames) / out_fps
+    rotations = sample_at(restyled60, FPS, times)
+    return retarget.to_source(h_template.replace(rotations=rotations), template=template)
+
+
+def restyle_file(input_path, output_path, model=None, direction: str = "a2b", intensity: float = 1.0,
+                 hop: int = 15, fps: float | None = None, map_file=None, restyler=None, live: bool = False) -> dict:
+    from stylecast.motion.bvh import read_bvh, write_bvh
+    from stylecast.motion.humanoid import load_user_map
+
+    from .restyler import Restyler
+
+    if fps is not None and not fps > 0:
+        raise UserError(f"--fps must be positive, got {fps:g}")
+    restyler = restyler or Restyler.load(model, direction)
+    user_map = load_user_map(map_file) if map_file else None
+    clip = read_bvh(Path(input_path))
+    out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live)
+    write_bvh(out, Path(output_path))
+    return {"joints": len(out.skeleton), "frames": out.num_frames, "fps": out.fps, "model": restyler.name,
+            "direction": restyler.direction, "from": restyler.source_style, "to": restyler.target_style}

@@ -1,0 +1,136 @@
+"""``Restyler``: a loaded model as a batch function on quaternion words.
+
+    r = Restyler.load()                       # models/checkpoints/normal2exhausted, a2b
+    r = Restyler.load("runs/x/model.safetensors", direction="b2a")
+    out = r.restyle_words(words)              # (B, 60, 22, 4) xyzw -> same shape
+
+One call is one batched forward pass under ``torch.no_grad``: heading removal, encoding,
+generator, decoding and heading restoration are all vectorised over the batch. Nothing
+here runs per frame; the stream code (``stylecast.motion.words``) calls ``restyle_words``
+once per word or batch of words and blends in numpy.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from stylecast.motion.errors import UserError
+from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
+
+from . import checkpoint as ckpt
+from . import representation as R
+
+WORD_LENGTH = 60
+FPS = 60.0
+
+
+class Restyler:
+    def __init__(self, model, rep: R.Representation, metadata: dict, direction: str = "a2b",
+                 path: Path | None = None):
+        if direction not in ("a2b", "b2a"):
+            raise UserError(f"unknown direction {direction!r}; use a2b or b2a")
+        self.model = model.eval()
+        self.rep = rep
+        self.metadata = metadata
+        self.direction = direction
+        self.path = path
+
+    # -- loading --------------------------------------------------------------------------
+    @classmethod
+    def load(cls, path_or_name=None, direction: str = "a2b", device: str = "cpu") -> "Restyler":
+        from .networks import CycleGAN, NetworkConfig
+
+        path = ckpt.resolve(path_or_name)
+        tensors, meta = ckpt.read_checkpoint(path)
+        ckpt.validate_metadata(path, meta, HUMANOID_BONES, WORD_LENGTH, FPS)
+        version = meta.get("retarget_version", 1)
+        if version != RETARGET_VERSION:
+            raise UserError(f"checkpoint {path} was trained on humanoid rotations of retarget version {version}, "
+                            f"this stylecast maps motion with version {RETARGET_VERSION}; retrain the model "
+                            f"(`stylecast train`)")
+        rep_meta = meta["representation"]
+        name = rep_meta.get("name") if isinstance(rep_meta, dict) else None
+        if name not in R.REPRESENTATIONS:
+            raise UserError(f"checkpoint {path} uses the representation {name!r}, which this stylecast does not "
+                            f"know ({', '.join(R.REPRESENTATIONS)}); use a matching stylecast")
+        reference = rep_meta.get("reference")
+        if reference is not None:
+            reference = np.asarray(reference, dtype=np.float64)
+            if reference.shape != (len(HUMANOID_BONES), 4) or not np.allclose(np.linalg.norm(reference, axis=1), 1,
+                                                                                atol=1e-6):
+                raise UserError(f"checkpoint {path} has a malformed reference pose (want {len(HUMANOID_BONES)} unit "
+                                f"quaternions); export it again with `stylecast train`")
+        rep = R.get_representation(name, reference)
+        if name == "euler" and (rep_meta.get("euler_order") != R.EULER_ORDER or
+                                rep_meta.get("normalisation") != rep.metadata()["normalisation"]):
+            raise UserError(f"checkpoint {path} uses Euler order {rep_meta.get('euler_order')} with normalisation "
+                            f"{rep_meta.get('normalisation')}, this stylecast uses {R.EULER_ORDER} scaled by "
+                            f"1/{R.EULER_SCALE_DEG:g} after centring; retrain the model")
+        try:
+            cfg = NetworkConfig(**meta["network"])
+        except TypeError as exc:
+            raise UserError(f"checkpoint {path} has network settings this stylecast does not understand ({exc}); "
+                            f"use a matching stylecast or retrain") from None
+        if cfg.channels != rep.channels or cfg.joints != len(HUMANOID_BONES):
+            raise UserError(f"checkpoint {path} declares {cfg.joints} bones x {cfg.channels} channels, but its "
+                            f"representation needs {len(HUMANOID_BONES)} x {rep.channels}; export it again")
+        model = CycleGAN(cfg, rep.combine)
+        state = ckpt.check_shapes(path, model, tensors, ("G_a2b.", "G_b2a."))
+        model.load_state_dict(state, strict=False)  # discriminators are optional in a checkpoint
+        model.to(device)
+        return cls(model, rep, meta, direction, path)
+
+    # -- facts ----------------------------------------------------------------------------
+    @property
+    def styles(self) -> dict:
+        return dict(self.metadata["styles"])
+
+    @property
+    def source_style(self) -> str:
+        return self.styles["a" if self.direction == "a2b" else "b"]
+
+    @property
+    def target_style(self) -> str:
+        return self.styles["b" if self.direction == "a2b" else "a"]
+
+    @property
+    def name(self) -> str:
+        return self.path.stem if self.path else "model"
+
+    def with_direction(self, direction: str) -> "Restyler":
+        return Restyler(self.model, self.rep, self.metadata, direction, self.path)
+
+    # -- inference ------------------------------------------------------------------------
+    def generator(self, direction: str | None = None):
+        return self.model.G_a2b if (direction or self.direction) == "a2b" else self.model.G_b2a
+
+    def restyle_features(self, features: np.ndarray, direction: str | None = None) -> np.ndarray:
+        """Heading-free features (B, 60, J, C) -> restyled features, one batched pass."""
+        import torch
+
+        from .networks import from_channels, to_channels
+
+        x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
+        device = next(self.model.parameters()).device
+        with torch.no_grad():
+            y = self.generator(direction)(to_channels(x).to(device))
+        return from_channels(y, x.shape[2]).cpu().numpy()
+
+    def restyle_words(self, words: np.ndarray, direction: str | None = None) -> np.ndarray:
+        """Quaternion words (B, 60, 22, 4), humanoid local rotations xyzw -> same shape."""
+        words = np.asarray(words, dtype=np.float64)
+        if words.ndim != 4 or words.shape[1:] != (WORD_LENGTH, len(HUMANOID_BONES), 4):
+            raise ValueError(f"words must have shape (B, {WORD_LENGTH}, {len(HUMANOID_BONES)}, 4), got {words.shape}")
+        if len(words) == 0:
+            return words.copy()
+        flat, yaw = R.remove_heading(words)
+        out = self.rep.decode(self.restyle_features(self.rep.encode(flat), direction))
+        out = R.restore_heading(out, yaw)
+        # Same hemisphere as the input, frame by frame: q and -q are one rotation, and the
+        # blender interpolates between input and output.
+        sign = np.where(np.sum(out * words, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+        return out * sign
+
+    __call__ = restyle_words

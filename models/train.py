@@ -1,0 +1,372 @@
+"""Training the CycleGAN restyler (``stylecast train``).
+
+One epoch = ``words_per_epoch`` words of each style, drawn without replacement from the
+training words with a generator seeded by (seed, epoch), in batches of ``batch_size``.
+The paper's "epoch" is a pass over its 200 s of data per style (~600 words at hop 20);
+the Bandai pairs have ~5,000 training words per style, so a sampled epoch of 1,024 words
+keeps 90 epochs inside the 20-minute budget on one CPU core. Each step updates the two
+generators on (11) (without the discriminator terms), then the two discriminators on
+(1)+(2): the usual alternating form of (12). Adam, lr 2e-4, betas (0.5, 0.999).
+
+Files written to the output folder:
+  checkpoint.safetensors/.json  all four networks + metadata, rewritten every epoch
+  train_state.safetensors/.json optimiser moments and the epoch, for --resume
+  losses.csv                    one row of mean losses (and validation figures) per epoch
+  model.safetensors/.json       the two generators only: the shippable model
+
+Deterministic on the CPU for a seed: weights come from torch.manual_seed(seed), batches
+from numpy's default_rng((seed, epoch)), torch.use_deterministic_algorithms(True).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from stylecast.motion.errors import UserError
+from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
+
+from . import checkpoint as ckpt
+from . import data as D
+from . import losses as L
+from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
+from . import representation as R
+from .representation import euler_features, get_representation
+
+CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
+              "temporal_b", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
+              "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
+
+
+@dataclass
+class TrainConfig:
+    style_a: str = "normal"
+    style_b: str = "exhausted"
+    loss: str = "cycle-diff"
+    epochs: int = 90
+    batch_size: int = 32
+    words_per_epoch: int = 1024
+    seed: int = 0
+    lr: float = 2e-4
+    beta1: float = 0.5
+    beta2: float = 0.999
+    representation: str = "euler"
+    centre: bool = False  # centre each bone on its mean rotation (see representation.py)
+    hop: int = 20
+    max_words: int | None = None
+    val_words: int = 256
+    lambda_cycle: float = L.LAMBDA_CYCLE
+    lambda_diff: float = L.LAMBDA_DIFF
+    lambda_coherence: float = L.LAMBDA_COHERENCE
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["network"] = self.network.to_dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TrainConfig":
+        d = dict(d)
+        d["network"] = NetworkConfig(**d.get("network", {}))
+        return cls(**d)
+
+
+def pick_device(name: str = "auto"):
+    import torch
+
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise UserError(f"device {name} was asked for but CUDA is not available; use --device cpu")
+    return torch.device(name)
+
+
+def build_model(cfg: TrainConfig, reference: np.ndarray | None = None):
+    rep = get_representation(cfg.representation, reference)
+    net = replace(cfg.network, channels=rep.channels, joints=len(HUMANOID_BONES))
+    cfg.network = net
+    return CycleGAN(net, rep.combine), rep
+
+
+def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
+    meta = {
+        "styles": {"a": cfg.style_a, "b": cfg.style_b},
+        "bones": list(HUMANOID_BONES),
+        "representation": rep.metadata(),
+        "normalisation": rep.metadata()["normalisation"],
+        "heading": "removed per word (Hips yaw at the centre frame), restored after the generator",
+        "fps": D.FPS,
+        "word_length": D.WORD_LENGTH,
+        "retarget_version": RETARGET_VERSION,
+        "network": cfg.network.to_dict(),
+        "loss": cfg.loss,
+        "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence},
+        "training": {k: v for k, v in cfg.to_dict().items() if k != "network"},
+        "training_data": f"{D.DATA_NAME}: styles {cfg.style_a} and {cfg.style_b}, training split by file "
+                         f"(SHA-1 of file name, {int(D.VAL_FRACTION * 100)}% held out)",
+        "licence": f"{D.DATA_LICENCE}: trained on the {D.DATA_NAME} (Kobayashi et al., arXiv:2306.08861); "
+                   f"the weights may only be used non-commercially",
+        "git_revision": ckpt.git_revision(),
+    }
+    meta.update(extra or {})
+    return meta
+
+
+def _batches(n_words: int, wanted: int, batch: int, rng: np.random.Generator) -> list[np.ndarray]:
+    reps = math.ceil(wanted / n_words)
+    order = np.concatenate([rng.permutation(n_words) for _ in range(reps)])[:wanted]
+    return [order[i:i + batch] for i in range(0, wanted, batch)]
+
+
+def smoothness(features_euler: np.ndarray) -> float:
+    """Mean over bones of the per-word sum of d_t (METHOD.md), words (N, T, J, 3)."""
+    d = np.linalg.norm(np.diff(features_euler, axis=1), axis=-1)  # (N, T-1, J)
+    return float(d.sum(axis=1).mean())
+
+
+class Trainer:
+    """Trains on quaternion words (N, 60, J, 4), heading already removed (``data.headless``).
+    The representation's per-bone reference is the mean of both styles' training words."""
+
+    def __init__(self, cfg: TrainConfig, words_a: np.ndarray, words_b: np.ndarray,
+                 val_a: np.ndarray | None = None, val_b: np.ndarray | None = None, device: str = "auto",
+                 reference: np.ndarray | None = None):
+        import torch
+
+        if cfg.loss not in L.LOSS_KINDS:
+            raise UserError(f"unknown loss {cfg.loss!r}; choose cycle-diff or coherence")
+        if len(words_a) == 0 or len(words_b) == 0:
+            raise UserError(f"no training words for style {cfg.style_a if len(words_a) == 0 else cfg.style_b}; "
+                            f"check the data folder")
+        self.cfg = cfg
+        self.device = pick_device(device)
+        torch.manual_seed(cfg.seed)
+        torch.use_deterministic_algorithms(True)
+        if reference is None and cfg.centre:
+            reference = R.mean_reference(np.concatenate([words_a[::3], words_b[::3]]))
+        self.model, self.rep = build_model(cfg, reference)
+        self.model.to(self.device)
+        self.opt_g = torch.optim.Adam(self.model.generators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
+        self.opt_d = torch.optim.Adam(self.model.discriminators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
+        self.words_a = torch.from_numpy(self._encode(words_a))
+        self.words_b = torch.from_numpy(self._encode(words_b))
+        self.val_a = None if val_a is None or len(val_a) == 0 else self._encode(val_a[: cfg.val_words])
+        self.val_b = None if val_b is None or len(val_b) == 0 else self._encode(val_b[: cfg.val_words])
+        self.epoch = 0  # epochs completed
+
+    # -- one step ---------------------------------------------------------------------
+    def step(self, a, b) -> dict[str, float]:
+        m, cfg = self.model, self.cfg
+        for p in m.discriminators():
+            p.requires_grad_(False)
+        fake_b = m.G_a2b(a)
+        fake_a = m.G_b2a(b)
+        rec_a = m.G_b2a(fake_b)
+        rec_b = m.G_a2b(fake_a)
+        g = L.generator_objective(cfg.loss, a, b, fake_b, fake_a, rec_a, rec_b, m.D_b(fake_b), m.D_a(fake_a),
+                                  cfg.lambda_cycle, cfg.lambda_diff, cfg.lambda_coherence)
+        self.opt_g.zero_grad(set_to_none=True)
+        g.total.backward()
+        self.opt_g.step()
+        for p in m.discriminators():
+            p.requires_grad_(True)
+        d_a = L.discriminator_loss(m.D_a(a), m.D_a(fake_a.detach()))
+        d_b = L.discriminator_loss(m.D_b(b), m.D_b(fake_b.detach()))
+        self.opt_d.zero_grad(set_to_none=True)
+        (d_a + d_b).backward()
+        self.opt_d.step()
+        return {"G_a2b": g.adv_a2b.item(), "G_b2a": g.adv_b2a.item(), "D_a": d_a.item(), "D_b": d_b.item(),
+                "cycle_a": g.cycle_a.item(), "cycle_b": g.cycle_b.item(), "temporal_a": g.temporal_a.item(),
+                "temporal_b": g.temporal_b.item(), "G_total": g.total.item()}
+
+    def _to(self, words):
+        return to_channels(words).to(self.device)
+
+    def run_epoch(self, progress=None) -> dict[str, float]:
+        cfg = self.cfg
+        self.model.train()
+        rng = np.random.default_rng((cfg.seed, self.epoch))
+        ba = _batches(len(self.words_a), cfg.words_per_epoch, cfg.batch_size, rng)
+        bb = _batches(len(self.words_b), cfg.words_per_epoch, cfg.batch_size, rng)
+        sums: dict[str, float] = {}
+        for i, (ia, ib) in enumerate(zip(ba, bb)):
+            out = self.step(self._to(self.words_a[ia]), self._to(self.words_b[ib]))
+            for k, v in out.items():
+                sums[k] = sums.get(k, 0.0) + v
+            if progress is not None:
+                progress.update(1)
+                progress.set_postfix({k: f"{sums[k] / (i + 1):.3g}" for k in ("G_a2b", "D_b", "cycle_a", "temporal_a")})
+        self.epoch += 1
+        return {k: v / len(ba) for k, v in sums.items()}
+
+    def validate(self) -> dict[str, float]:
+        import torch
+
+        out: dict[str, float] = {}
+        if self.val_a is None or self.val_b is None:
+            return out
+        self.model.eval()
+        with torch.no_grad():
+            for name, words, g, back in (("a", self.val_a, self.model.G_a2b, self.model.G_b2a),
+                                         ("b", self.val_b, self.model.G_b2a, self.model.G_a2b)):
+                x = self._to(torch.from_numpy(np.ascontiguousarray(words, dtype=np.float32)))
+                y = g(x)
+                rec = back(y)
+                out[f"val_cycle_{name}"] = L.cycle_loss(rec, x).item()
+                out[f"val_diff_{name}"] = L.diff_loss(rec, x).item()
+                y_words = y.transpose(1, 2).reshape(words.shape).cpu().numpy()
+                e_in = self._euler(words)
+                e_out = self._euler(y_words)
+                key = "a2b" if name == "a" else "b2a"
+                out[f"val_smooth_ratio_{key}"] = smoothness(e_out) / max(smoothness(e_in), 1e-12)
+        return out
+
+    def _encode(self, words: np.ndarray, chunk: int = 2048) -> np.ndarray:
+        out = np.empty((*words.shape[:3], self.rep.channels), np.float32)
+        for i in range(0, len(words), chunk):
+            out[i:i + chunk] = self.rep.encode(words[i:i + chunk])
+        return out
+
+    def _euler(self, features: np.ndarray) -> np.ndarray:
+        if self.rep.name == "euler":
+            return features
+        return euler_features(self.rep.decode(features), self.rep.reference)
+
+    # -- state ------------------------------------------------------------------------
+    def model_tensors(self, generators_only: bool = False) -> dict:
+        sd = self.model.state_dict()
+        if generators_only:
+            sd = {k: v for k, v in sd.items() if k.startswith(("G_a2b.", "G_b2a."))}
+        return sd
+
+    def save(self, out: Path, metrics: dict | None = None) -> None:
+        meta = model_metadata(self.cfg, self.rep, {"epochs_completed": self.epoch, "metrics": metrics or {}})
+        ckpt.save_checkpoint(out / "checkpoint.safetensors", self.model_tensors(), meta)
+        state, layout = {}, {}
+        for name, opt in (("opt_g", self.opt_g), ("opt_d", self.opt_d)):
+            sd = opt.state_dict()
+            layout[name] = {"param_groups": sd["param_groups"]}
+            for pid, s in sd["state"].items():
+                for k, v in s.items():
+                    state[f"{name}.{pid}.{k}"] = v.reshape(1) if v.dim() == 0 else v
+        ckpt.save_checkpoint(out / "train_state.safetensors", state,
+                             {**meta, "optimisers": layout, "config": self.cfg.to_dict()})
+
+    def load_state(self, out: Path) -> None:
+        import torch
+
+        tensors, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
+        sd = ckpt.check_shapes(out / "checkpoint.safetensors", self.model, tensors, ("G_", "D_"))
+        self.model.load_state_dict(sd)
+        st, smeta = ckpt.read_checkpoint(out / "train_state.safetensors")
+        saved = TrainConfig.from_dict(smeta["config"]).to_dict()
+        mine = self.cfg.to_dict()
+        changed = sorted(k for k in mine if k not in ("epochs",) and saved.get(k) != mine[k])
+        if changed:
+            raise UserError(f"cannot resume from {out}: the run used different settings ({', '.join(changed)}); "
+                            f"use the same options or a new --out folder")
+        for name, opt in (("opt_g", self.opt_g), ("opt_d", self.opt_d)):
+            state: dict = {}
+            prefix = f"{name}."
+            for k, v in st.items():
+                if k.startswith(prefix):
+                    pid, key = k[len(prefix):].split(".", 1)
+                    t = torch.from_numpy(np.array(v))
+                    state.setdefault(int(pid), {})[key] = t.reshape(()) if key == "step" else t
+            opt.load_state_dict({"state": state, "param_groups": smeta["optimisers"][name]["param_groups"]})
+        self.epoch = int(smeta["epochs_completed"])
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def _read_csv(path: Path) -> list[dict]:
+    if not path.exists():
+        return []
+    with open(path, newline="") as f:
+        return [{k: (float(v) if v not in ("", None) and k != "epoch" else v) for k, v in r.items()}
+                for r in csv.DictReader(f)]
+
+
+def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None, resume: bool = False,
+          device: str = "auto", progress: bool = True, log=print) -> Trainer:
+    """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    reference = None
+    if resume:
+        if not (out / "checkpoint.safetensors").exists():
+            raise UserError(f"nothing to resume in {out}: no checkpoint.safetensors there; drop --resume to "
+                            f"start a new run")
+        _, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
+        ref = meta["representation"].get("reference")
+        reference = None if ref is None else np.asarray(ref, dtype=np.float64)
+    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference)
+    rows: list[dict] = []
+    if resume:
+        trainer.load_state(out)
+        rows = [r for r in _read_csv(out / "losses.csv") if int(r["epoch"]) <= trainer.epoch]
+        log(f"resuming from epoch {trainer.epoch}")
+    g = count_parameters(trainer.model.G_a2b)
+    log(f"training {cfg.style_a}<->{cfg.style_b} ({cfg.loss}, {cfg.representation}) on {trainer.device}: "
+        f"{len(words_a)}/{len(words_b)} training words, {cfg.words_per_epoch} per epoch, generator {g} parameters")
+    steps = math.ceil(cfg.words_per_epoch / cfg.batch_size)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=steps * (cfg.epochs - trainer.epoch), unit="step", dynamic_ncols=True)
+    spent = sum(float(r.get("seconds") or 0) for r in rows)
+    cpu = sum(float(r.get("cpu_seconds") or 0) for r in rows)
+    while trainer.epoch < cfg.epochs:
+        t0, c0 = time.perf_counter(), time.process_time()
+        if bar is not None:
+            bar.set_description(f"epoch {trainer.epoch + 1}/{cfg.epochs}")
+        row = trainer.run_epoch(bar)
+        row.update(trainer.validate())
+        row["epoch"] = trainer.epoch
+        row["seconds"] = time.perf_counter() - t0
+        row["cpu_seconds"] = time.process_time() - c0  # the machine is shared: CPU time is the fair cost
+        spent += row["seconds"]
+        cpu += row["cpu_seconds"]
+        rows.append(row)
+        _write_csv(out / "losses.csv", rows)
+        trainer.save(out, {"train_seconds": spent, "train_cpu_seconds": cpu, **{k: v for k, v in row.items() if k.startswith("val_")}})
+        if bar is None:
+            log(f"epoch {trainer.epoch}/{cfg.epochs} " + " ".join(f"{k}={row[k]:.4g}" for k in CSV_FIELDS[1:] if k in row))
+    if bar is not None:
+        bar.close()
+    final = {"train_seconds": spent, "train_cpu_seconds": cpu, "epochs": trainer.epoch,
+             **{k: v for k, v in (rows[-1] if rows else {}).items() if k.startswith("val_")}}
+    meta = model_metadata(cfg, trainer.rep, {"epochs_completed": trainer.epoch, "metrics": final})
+    ckpt.save_checkpoint(out / "model.safetensors", trainer.model_tensors(generators_only=True), meta)
+    (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
+    log(f"done: {trainer.epoch} epochs in {spent / 60:.1f} min ({cpu / 60:.1f} CPU min); model at "
+        f"{out / 'model.safetensors'}")
+    return trainer
+
+
+def load_training_words(cfg: TrainConfig, data_dir=None, cache_dir=None, progress: bool = True, log=print):
+    """Heading-free quaternion words of both styles, training and validation splits."""
+    t0 = time.perf_counter()
+    sets = {}
+    for style in (cfg.style_a, cfg.style_b):
+        for split in ("train", "val"):
+            cap = cfg.max_words if split == "train" else (cfg.val_words if cfg.max_words is None else
+                                                          min(cfg.val_words, cfg.max_words))
+            sets[(style, split)] = D.load_wordset(style, split, data_dir, cache_dir, cfg.hop, cap, progress)
+    log(f"loaded words in {time.perf_counter() - t0:.1f} s: " + ", ".join(
+        f"{s}/{sp} {len(w)}" for (s, sp), w in sets.items()))
+    return sets

@@ -1,0 +1,121 @@
+"""The `stylecast train`, `restyle` and `eval` commands end to end (shared Bandai data;
+skipped when it is absent)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stylecast.cli import main
+from stylecast.motion import Clip, Skeleton
+from stylecast.motion.bvh import read_bvh, write_bvh
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai"
+DATA2 = SHARED / "dataset-2" / "data"
+CLIP = DATA2 / "dataset-2_walk_normal_001.bvh.gz"
+needs_data = pytest.mark.skipif(not CLIP.exists(), reason=f"the shared Bandai data is not at {SHARED}")
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory) -> Path:
+    """The CI training run: a few words, one epoch, through the real command."""
+    if not CLIP.exists():
+        pytest.skip("shared Bandai data absent")
+    out = tmp_path_factory.mktemp("run")
+    code = main(["train", "--max-words", "16", "--epochs", "1", "--batch-size", "4", "--words-per-epoch", "8",
+                 "--threads", "1", "--seed", "1", "--out", str(out), "--no-progress"])
+    assert code == 0
+    return out
+
+
+@needs_data
+def test_train_cli_writes_a_model_and_one_csv_row(tiny_run):
+    rows = (tiny_run / "losses.csv").read_text().strip().splitlines()
+    assert len(rows) == 2 and rows[1].startswith("1,")
+    assert (tiny_run / "model.safetensors").stat().st_size < 5_000_000
+
+
+@needs_data
+def test_train_cli_rejects_an_unknown_style(tmp_path, capsys):
+    assert main(["train", "--style-b", "sleepy", "--max-words", "4", "--out", str(tmp_path), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown style 'sleepy'" in err and "exhausted" in err and "Traceback" not in err
+
+
+@needs_data
+def test_restyle_keeps_the_input_skeleton_and_frame_count(tiny_run, tmp_path, capsys):
+    out = tmp_path / "out.bvh"
+    assert main(["restyle", str(CLIP), "-o", str(out), "--model", str(tiny_run / "model.safetensors"),
+                 "--threads", "1"]) == 0
+    src, res = read_bvh(CLIP), read_bvh(out)
+    assert res.skeleton.names == src.skeleton.names
+    assert res.num_frames == src.num_frames and res.fps == src.fps
+    assert np.allclose(res.root_positions, src.root_positions, atol=1e-3)  # the root passes through
+    assert main(["info", str(out)]) == 0
+    capsys.readouterr()
+    out60 = tmp_path / "out60.bvh"
+    assert main(["restyle", str(CLIP), "-o", str(out60), "--model", str(tiny_run / "model.safetensors"),
+                 "--fps", "60", "--direction", "b2a", "--intensity", "0.5", "--hop", "30"]) == 0
+    assert read_bvh(out60).num_frames == 2 * src.num_frames - 1
+
+
+@needs_data
+def test_restyle_pads_a_clip_shorter_than_one_word(tiny_run, tmp_path):
+    short = tmp_path / "short.bvh"
+    write_bvh(read_bvh(CLIP).slice(0, 12), short)  # 12 frames at 30 fps = 23 at 60 fps
+    out = tmp_path / "short_out.bvh"
+    assert main(["restyle", str(short), "-o", str(out), "--model", str(tiny_run / "model.safetensors")]) == 0
+    assert read_bvh(out).num_frames == 12
+
+
+@needs_data
+def test_restyle_refuses_an_unmappable_skeleton_with_a_model(tiny_run, tmp_path, capsys):
+    sk = Skeleton(("root", "thing", "other"), (-1, 0, 1), np.array([[0, 0, 0], [0, 10, 0], [0, 10, 0]], float))
+    clip = Clip(sk, np.tile([0.0, 0, 0, 1], (5, 3, 1)), np.zeros((5, 3)), 30.0)
+    path = tmp_path / "odd.bvh"
+    write_bvh(clip, path)
+    code = main(["restyle", str(path), "-o", str(tmp_path / "x.bvh"), "--model", str(tiny_run / "model.safetensors")])
+    err = capsys.readouterr().err
+    assert code == 2 and "cannot map skeleton to the humanoid" in err and "--map" in err
+    assert err.count("\n") == 1
+
+
+def test_restyle_refuses_a_corrupt_checkpoint(tmp_path, capsys):
+    bad = tmp_path / "bad.safetensors"
+    bad.write_bytes(b"not a checkpoint at all")
+    code = main(["restyle", "whatever.bvh", "-o", str(tmp_path / "x.bvh"), "--model", str(bad)])
+    err = capsys.readouterr().err
+    assert code == 2 and "corrupt or truncated" in err and err.count("\n") == 1
+
+
+@needs_data
+@pytest.mark.slow
+def test_eval_writes_a_report(tiny_run, tmp_path):
+    model = str(tiny_run / "model.safetensors")
+    assert main(["eval", "--model", model, "--baseline", model, "--out", str(tmp_path), "--max-files", "2",
+                 "--threads", "1"]) == 0
+    report = (tmp_path / "report.md").read_text()
+    for section in ("Table 3", "Seam ratio", "Style", "Content preservation", "Cycle reconstruction"):
+        assert section in report
+    assert (tmp_path / "fig_bones_00-10.png").exists() and (tmp_path / "metrics.json").exists()
+
+
+class _Identity:
+    @staticmethod
+    def restyle_words(words):
+        return words
+
+
+@needs_data
+def test_restyle_path_with_an_identity_model_reproduces_the_input():
+    from stylecast.models.restyle import restyle_clip
+    from stylecast.motion.clip import forward_kinematics
+
+    clip = read_bvh(CLIP)
+    out = restyle_clip(clip, _Identity(), hop=20)
+    p_in, _ = forward_kinematics(clip)
+    p_out, _ = forward_kinematics(out)
+    assert out.num_frames == clip.num_frames
+    assert np.abs(p_out - p_in).max() < 0.05  # centimetres
