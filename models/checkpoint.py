@@ -110,14 +110,14 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dic
             header = f.metadata() or {}
             tensors = {k: f.get_tensor(k) for k in f.keys()}
     except Exception as exc:  # safetensors raises its own error types for bad headers and short files
-        raise UserError(f"checkpoint {path} is corrupt or truncated ({_short(exc)}); re-export it with "
+        raise UserError(f"checkpoint {path} is corrupt or truncated ({short_reason(exc)}); re-export it with "
                         f"`stylecast train` or restore the shipped file") from None
     try:
         meta = json.loads(header["stylecast"])
         if not isinstance(meta, dict):
             raise ValueError("metadata is not a table")
     except (KeyError, ValueError) as exc:
-        raise UserError(f"checkpoint {path} has no stylecast metadata ({_short(exc)}); it was not written by "
+        raise UserError(f"checkpoint {path} has no stylecast metadata ({short_reason(exc)}); it was not written by "
                         f"stylecast, so export it again with `stylecast train`") from None
     missing = [k for k in REQUIRED_KEYS if k not in meta]
     if missing:
@@ -133,6 +133,12 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dic
 
 
 def validate_metadata(path, meta: dict, bones: tuple[str, ...], word_length: int, fps: float) -> None:
+    """Refuse metadata this stylecast cannot use, in one sentence. Values are type-checked
+    before use: a hostile file must not turn into a TypeError or ValueError traceback."""
+    if not (isinstance(meta["bones"], list) and all(isinstance(b, str) for b in meta["bones"])
+            and isinstance(meta["word_length"], int) and isinstance(meta["fps"], (int, float))):
+        raise UserError(f"checkpoint {path} has malformed metadata (bones must be a list of names, word_length "
+                        f"an integer, fps a number); export it again with `stylecast train`")
     if tuple(meta["bones"]) != tuple(bones):
         raise UserError(f"checkpoint {path} was trained on the bones {meta['bones'][:3]}... which are not "
                         f"stylecast's {len(bones)} humanoid bones; retrain it for this stylecast")
@@ -171,6 +177,6 @@ def update_metadata(path: str | os.PathLike, **updates) -> dict:
     return meta
 
 
-def _short(exc: BaseException) -> str:
+def short_reason(exc: BaseException) -> str:
     s = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     return s[:120]

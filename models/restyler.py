@@ -20,6 +20,8 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
 
 from . import checkpoint as ckpt
+
+MAX_NETWORK_SIZE = 1 << 16  # no width, depth or kernel of a live restyler comes near this
 from . import representation as R
 
 WORD_LENGTH = 60
@@ -57,7 +59,10 @@ class Restyler:
                             f"know ({', '.join(R.REPRESENTATIONS)}); use a matching stylecast")
         reference = rep_meta.get("reference")
         if reference is not None:
-            reference = np.asarray(reference, dtype=np.float64)
+            try:
+                reference = np.asarray(reference, dtype=np.float64)
+            except (TypeError, ValueError):
+                reference = np.zeros(0)  # refused just below
             if reference.shape != (len(HUMANOID_BONES), 4) or not np.allclose(np.linalg.norm(reference, axis=1), 1,
                                                                                 atol=1e-6):
                 raise UserError(f"checkpoint {path} has a malformed reference pose (want {len(HUMANOID_BONES)} unit "
@@ -68,19 +73,44 @@ class Restyler:
             raise UserError(f"checkpoint {path} uses Euler order {rep_meta.get('euler_order')} with normalisation "
                             f"{rep_meta.get('normalisation')}, this stylecast uses {R.EULER_ORDER} scaled by "
                             f"1/{R.EULER_SCALE_DEG:g} after centring; retrain the model")
-        try:
-            cfg = NetworkConfig(**meta["network"])
-        except TypeError as exc:
-            raise UserError(f"checkpoint {path} has network settings this stylecast does not understand ({exc}); "
-                            f"use a matching stylecast or retrain") from None
+        cfg = cls._network_config(path, meta)
         if cfg.channels != rep.channels or cfg.joints != len(HUMANOID_BONES):
             raise UserError(f"checkpoint {path} declares {cfg.joints} bones x {cfg.channels} channels, but its "
                             f"representation needs {len(HUMANOID_BONES)} x {rep.channels}; export it again")
+        # Shapes are checked on a network built on torch's "meta" device, which allocates
+        # nothing: settings claiming a huge network are refused before any memory is used.
+        import torch
+
+        try:
+            with torch.device("meta"):
+                outline = CycleGAN(cfg, rep.combine)
+        except (RuntimeError, ValueError) as exc:  # sizes no network could have
+            raise UserError(f"checkpoint {path} describes an impossible network ({ckpt.short_reason(exc)}); "
+                            f"export it again with `stylecast train`") from None
+        state = ckpt.check_shapes(path, outline, tensors, ("G_a2b.", "G_b2a."))
         model = CycleGAN(cfg, rep.combine)
-        state = ckpt.check_shapes(path, model, tensors, ("G_a2b.", "G_b2a."))
         model.load_state_dict(state, strict=False)  # discriminators are optional in a checkpoint
         model.to(device)
         return cls(model, rep, meta, direction, path)
+
+    @staticmethod
+    def _network_config(path, meta: dict):
+        from .networks import NetworkConfig
+
+        settings = meta["network"]
+        fields = NetworkConfig.__dataclass_fields__
+        if not isinstance(settings, dict) or set(settings) - set(fields):
+            raise UserError(f"checkpoint {path} has network settings this stylecast does not understand; use a "
+                            f"matching stylecast or retrain")
+        for key, value in settings.items():
+            kind = fields[key].type
+            ok = (isinstance(value, int) and not isinstance(value, bool) and 0 < value <= MAX_NETWORK_SIZE) \
+                if kind in (int, "int") \
+                else (isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value))
+            if not ok:
+                raise UserError(f"checkpoint {path} has a malformed network setting {key}={value!r}; export it "
+                                f"again with `stylecast train`")
+        return NetworkConfig(**settings)
 
     # -- facts ----------------------------------------------------------------------------
     @property
