@@ -27,6 +27,8 @@ Per tick, in this order (the order is what makes fake-clock replays exact):
 
 from __future__ import annotations
 
+import dataclasses
+
 import logging
 import math
 import threading
@@ -48,6 +50,21 @@ log = logging.getLogger("stylecast.daemon")
 STATUS_REPLIES_PER_TICK = 4  # bounds the work a status-request flood can cause
 CONTROL_ERRORS_LOGGED = 10  # refused commands logged one by one; after that every 1000th
 MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not sent late
+
+
+BATCH_GROUP = 8  # performers whose words share one model call
+
+
+def staggered(settings: BlendSettings, k: int, performers: int) -> BlendSettings:
+    """Performer k's settings with its word grid shifted by its group's phase.
+
+    Performers that start together would hand all their words to the model on one tick
+    and wait for one big batch; with delay = hop the model has one frame period, so a
+    large batch comes back late (counted, faded to pass-through). Groups of
+    ``BATCH_GROUP`` share a phase, and the groups spread evenly over the hop: words are
+    still batched, and no tick carries more than a group's worth."""
+    groups = -(-performers // BATCH_GROUP)
+    return dataclasses.replace(settings, phase=(k // BATCH_GROUP) * settings.hop // groups)
 
 
 class Daemon:
@@ -99,7 +116,7 @@ class Daemon:
             skeleton = source.skeleton if source.skeleton is not None else humanoid_skeleton_default()
             if tuple(skeleton.names) != HUMANOID_BONES:
                 raise UserError(f"source {source.performer!r} does not deliver the humanoid skeleton")
-            session = Session(k, source, self.settings, len(HUMANOID_BONES))
+            session = Session(k, source, staggered(self.settings, k, len(sources)), len(HUMANOID_BONES))
             session.intensity = self.config.intensity
             session.set_bypass(self.config.bypass)
             self.sessions.append(session)

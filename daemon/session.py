@@ -55,7 +55,7 @@ class Session:
         self.source = source
         self.performer = source.performer
         self.settings = settings
-        self.cutter = WordCutter(settings.hop, settings.word_length)
+        self.cutter = WordCutter(settings.hop, settings.word_length, settings.phase)
         self.blender = SeamBlender(settings, num_bones)
         self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
         self.frames_in = 0
@@ -108,9 +108,7 @@ class Session:
     def set_bypass(self, bypass: bool) -> None:
         if self.bypass and not bypass:
             # The next word the model will see is the next one the cutter emits.
-            first = self.settings.word_length - 1
-            n = self.cutter.frames_seen
-            self._resume_end = first if n <= first else first + -(-(n - first) // self.settings.hop) * self.settings.hop
+            self._resume_end = self.blender.serving_word(self.cutter.frames_seen)
         self.bypass = bypass
 
     def add_word(self, end: int, restyled: np.ndarray) -> None:

@@ -5,7 +5,7 @@ The walk of a frame, frame indices counted from the start of a performer's strea
 
 * ``WordCutter`` keeps a ring buffer of input rotations and, every ``hop`` frames, emits
   a motion word: the last ``WORD_LENGTH`` (60) frames. Word ends lie on the grid
-  e = 59, 59 + hop, 59 + 2*hop, ...
+  e = 59 + phase, 59 + phase + hop, ... (phase 0 unless the daemon staggers performers).
 * The restyler turns each word into a restyled word (elsewhere, possibly late).
 * ``SeamBlender`` renders output frame t at time t + delay (delay >= hop frames). Frame t
   is served by the first word whose end e >= t (so e <= t + hop - 1). The first frame a
@@ -53,10 +53,12 @@ def word_ends(num_frames: int, hop: int, word_length: int = WORD_LENGTH) -> list
 
 @dataclass
 class WordCutter:
-    """Ring buffer of input rotations; emits a word every ``hop`` frames."""
+    """Ring buffer of input rotations; emits a word every ``hop`` frames, the first when
+    frame ``word_length - 1 + phase`` arrives."""
 
     hop: int
     word_length: int = WORD_LENGTH
+    phase: int = 0
     frames_seen: int = 0
     _buffer: deque = field(default_factory=deque, repr=False)
 
@@ -70,7 +72,8 @@ class WordCutter:
         self._buffer.append(np.asarray(rotations, dtype=np.float64))
         t = self.frames_seen
         self.frames_seen += 1
-        if t >= self.word_length - 1 and (t - (self.word_length - 1)) % self.hop == 0:
+        first = self.word_length - 1 + self.phase
+        if t >= first and (t - first) % self.hop == 0:
             return t, rot.canonical_hemisphere(np.stack(self._buffer))
         return None
 
@@ -82,6 +85,9 @@ class BlendSettings:
     decay_frames: float | None = None  # time constant of the seam offset; 0 disables blending
     crossfade_frames: int = 30  # pass-through <-> restyled fades
     word_length: int = WORD_LENGTH
+    # Shifts the word grid by this many frames (0 <= phase < hop). The daemon staggers
+    # groups of performers so their words do not all reach the model on the same tick.
+    phase: int = 0
 
     def __post_init__(self) -> None:
         if not 1 <= self.hop <= self.word_length:
@@ -90,6 +96,8 @@ class BlendSettings:
             self.delay = self.hop
         if self.delay < self.hop:
             raise ValueError(f"delay ({self.delay} frames) must be at least the hop ({self.hop} frames)")
+        if not 0 <= self.phase < self.hop:
+            raise ValueError(f"phase must be between 0 and hop - 1 frames, got {self.phase}")
         if self.decay_frames is None:
             self.decay_frames = float(min(max(self.hop, 4), 15))
         self.crossfade_frames = max(1, int(self.crossfade_frames))
@@ -138,7 +146,7 @@ class SeamBlender:
 
     def serving_word(self, t: int) -> int:
         """End frame of the word that serves frame t (the first grid end >= t)."""
-        first = self.settings.word_length - 1
+        first = self.settings.word_length - 1 + self.settings.phase
         if t <= first:
             return first
         hop = self.settings.hop
@@ -231,7 +239,7 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     blender = SeamBlender(settings, J)
     held = max(blender.serving_word(T - 1) - (T - 1), 0)
     padded = np.concatenate([rotations, np.repeat(rotations[-1:], held, axis=0)])
-    cutter = WordCutter(settings.hop, settings.word_length)
+    cutter = WordCutter(settings.hop, settings.word_length, settings.phase)
     ends, words = [], []
     for frame in padded:
         out = cutter.push(frame)

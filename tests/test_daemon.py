@@ -133,6 +133,26 @@ def test_several_performers_are_batched_and_each_equals_offline():
         assert rot.angle_between(live, offline(clip, restyler, 10)).max() < 1e-4
 
 
+def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline():
+    """Performers 0-7 share a word grid (and model calls); performers 8-9 form a second
+    group half a hop later, so no tick hands the model every word at once."""
+    clip = walk_clip(200)
+    restyler = StandInRestyler()
+    frames: dict[str, list] = {}
+    sources = [ReplaySource(clip, f"p{k}") for k in range(10)]
+    daemon = Daemon(DaemonConfig(hop=10, control="off"), sources, restyler, FakeClock(),
+                    frame_taps=[lambda f: frames.setdefault(f.performer, []).append(f)], log_status=False)
+    daemon.run()
+    daemon.close()
+    assert [s.settings.phase for s in daemon.sessions] == [0] * 8 + [5, 5]
+    assert daemon.worker.batches < daemon.worker.words
+    for k, phase in ((0, 0), (9, 5)):
+        live = np.stack([f.rotations for f in frames[f"p{k}"]])
+        expected = restyle_stream(clip.rotations, restyler.restyle_words,
+                                  BlendSettings(hop=10, crossfade_frames=30, phase=phase))
+        assert rot.angle_between(live, expected).max() < 1e-4
+
+
 def test_two_fake_clock_replays_send_byte_identical_datagrams():
     def capture():
         datagrams: list[bytes] = []

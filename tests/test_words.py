@@ -131,3 +131,19 @@ def test_frame_by_frame_rendering_equals_block_rendering():
         if 0 <= now - settings.delay < 500 - settings.hop:
             out.append(blender.render(now - settings.delay, motion[now - settings.delay]))
     assert rot.angle_between(np.stack(out), block[:len(out)]).max() < 1e-9
+
+
+def test_phase_shifts_the_word_grid_and_the_blend_follows_it():
+    motion = smooth_motion(300)
+    cutter = WordCutter(hop=15, phase=7)
+    ends = [out[0] for t in range(300) if (out := cutter.push(motion[t])) is not None]
+    assert ends[:3] == [66, 81, 96]
+    constant = rot.from_euler(np.full((J, 3), 20.0), "ZXY")
+    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w),
+                         BlendSettings(hop=15, phase=7))
+    first_due = 66 + 1 - 15  # one phase later than at phase 0
+    assert rot.angle_between(out[:first_due], motion[:first_due]).max() < 1e-9
+    assert rot.angle_between(out[first_due], motion[first_due]).max() > 0  # the fade-in has begun
+    assert rot.angle_between(out[first_due + 30], motion[first_due + 30]).max() > 5.0
+    with pytest.raises(ValueError, match="phase"):
+        BlendSettings(hop=15, phase=15)
