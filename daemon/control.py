@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import math
 import socket
 import threading
 from collections import Counter, deque
@@ -63,7 +64,9 @@ def parse_command(address: str, tags: str, args: tuple):
     performer = args[-1] if len(args) >= 2 and isinstance(args[-1], str) else None
     first = args[0] if args else None
     if address == "/stylecast/intensity":
-        if isinstance(first, (int, float)) and not isinstance(first, bool) and first == first:
+        # Non-finite values are refused, not clamped: +inf/-inf in a packet means a broken
+        # or hostile sender, and applying it as 1.0/0.0 would act on garbage (hardening).
+        if isinstance(first, (int, float)) and not isinstance(first, bool) and math.isfinite(first):
             return ("intensity", min(1.0, max(0.0, float(first))), performer)
     elif address == "/stylecast/bypass":
         flag = _flag(first)

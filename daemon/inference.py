@@ -25,6 +25,11 @@ from collections import deque
 import numpy as np
 
 log = logging.getLogger("stylecast.daemon")
+# Jobs (one per tick that completed words) waiting for a busy model. A slow or hung model
+# must not make this queue, and the merged catch-up batch behind it, grow without bound:
+# past this many, the oldest job's words can no longer be shown in time and are given up
+# as failed (the blender shows pass-through for them), counted in ``stale_words``.
+MAX_QUEUED_JOBS = 16
 
 
 class InferenceWorker:
@@ -40,6 +45,7 @@ class InferenceWorker:
         self.words = 0
         self.faults = 0
         self.fault_words = 0
+        self.stale_words = 0  # words given up unprocessed because the model fell behind
         self.last_fault = ""
         self.busy_seconds = 0.0
         self.call_ms = deque(maxlen=600)
@@ -60,6 +66,11 @@ class InferenceWorker:
         with self._cond:
             self._jobs.append(items)
             self._pending += 1
+            while len(self._jobs) > MAX_QUEUED_JOBS:  # hardening: see MAX_QUEUED_JOBS
+                stale = self._jobs.popleft()
+                self._pending -= 1
+                self.stale_words += len(stale)
+                self._failed.extend((s, end) for s, end, _ in stale)
             self._cond.notify_all()
 
     def collect(self) -> tuple[list, list]:

@@ -37,6 +37,7 @@ builder output for the same content and decode identically with python-osc's par
 from __future__ import annotations
 
 import errno
+import ipaddress
 import socket
 import sys
 from collections import Counter
@@ -284,6 +285,15 @@ class VmcSender:
         if sock is None:
             sock = socket.socket(family, socket.SOCK_DGRAM)
             sock.setblocking(False)
+            # Hardening: the kernel binds a send-only socket to every interface (0.0.0.0)
+            # on its first send, where anyone on the network can reach it. When every
+            # receiver of this family is on this machine, bind it to loopback instead.
+            hosts = [sa[0] for fam, sa in self._resolved if fam == family]
+            if hosts and all(ipaddress.ip_address(h.split("%")[0]).is_loopback for h in hosts):
+                try:
+                    sock.bind(("127.0.0.1", 0) if family == socket.AF_INET else ("::1", 0))
+                except OSError:
+                    pass  # no loopback address of this family: keep the kernel's choice
             if sys.platform.startswith("linux"):
                 level, opt = ((socket.IPPROTO_IP, 11) if family == socket.AF_INET
                               else (socket.IPPROTO_IPV6, 25))  # IP_RECVERR / IPV6_RECVERR

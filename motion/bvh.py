@@ -49,6 +49,16 @@ from .skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 MAX_JOINTS = 10_000
 MAX_VALUES = 2_000_000_000
 MAX_TEXT_BYTES = 2 << 30
+# The HIERARCHY is tokenised into Python objects (~100 bytes per word and per line), so a
+# hostile header of 50 MB would cost gigabytes: it is bounded first, by what MAX_JOINTS
+# joints can need (a joint takes ~15 words and ~6 lines; deep indentation takes bytes).
+MAX_HEADER_WORDS = 40 * MAX_JOINTS
+MAX_HEADER_LINES = 50 * MAX_JOINTS
+MAX_HEADER_BYTES = 64 << 20
+# A MOTION row holds `channels` numbers; a line far longer than that is refused before
+# it is tokenised (tokenising costs ~18 bytes of temporaries per byte of text).
+MAX_BYTES_PER_VALUE = 100
+_WORD = re.compile(rb"\S+")
 FPS_SNAP_TOLERANCE = 1e-4
 _CHUNK_BYTES = 1 << 18  # MOTION is parsed in line-aligned chunks so temporaries stay in cache
 _CHANNEL_NAMES = {c.lower(): c for c in POSITION_CHANNELS + ROTATION_CHANNELS}
@@ -239,6 +249,7 @@ def _parse_bytes(data: bytes | bytearray, source: str) -> Clip:
         raise UserError(f"{source} line 1: the file is empty; export the BVH again.")
     found = _find_motion_line(data)
     motion_at = found[0] if found else len(data)
+    _check_header_size(data, motion_at, source)
     skeleton = _parse_hierarchy(_Tokens(data[:motion_at].decode("utf-8", "replace"), source))
     if found is None:
         last = data.rstrip().count(b"\n") + 1  # the last line with text (error path: the copy is fine)
@@ -257,15 +268,39 @@ def _parse_bytes(data: bytes | bytearray, source: str) -> Clip:
     return _clip_from_channels(skeleton, layout, values, fps)
 
 
+def _check_header_size(data, end: int, source: str) -> None:
+    """Refuse a hierarchy too big for MAX_JOINTS joints before it is tokenised (hardening)."""
+    problem, at = None, -1
+    if end > MAX_HEADER_BYTES:
+        problem, at = f"{MAX_HEADER_BYTES:,} bytes", MAX_HEADER_BYTES
+    elif data.count(b"\n", 0, end) > MAX_HEADER_LINES:
+        problem = f"{MAX_HEADER_LINES:,} lines"
+        at = 0
+        for _ in range(MAX_HEADER_LINES + 1):
+            at = data.find(b"\n", at) + 1
+    else:
+        for count, match in enumerate(_WORD.finditer(data, 0, end)):  # one match object at a time
+            if count == MAX_HEADER_WORDS:
+                problem, at = f"{MAX_HEADER_WORDS:,} words", match.start()
+                break
+    if problem:
+        line = data.count(b"\n", 0, at) + 1
+        raise UserError(f"{source} line {line}: the hierarchy is longer than {problem}, more than {MAX_JOINTS:,} "
+                        f"joints can need; this is not a skeleton stylecast can use, check the file.")
+
+
 def _find_motion_line(data) -> tuple[int, int] | None:
     """Where the line that holds only MOTION starts and the next one starts (a joint may be called MOTION_1)."""
     at = data.find(b"MOTION")
     while at >= 0:
         start, end = data.rfind(b"\n", 0, at) + 1, data.find(b"\n", at)
         end = len(data) if end < 0 else end
-        if data[start:end].strip() == b"MOTION":
+        if end - start <= 4096 and data[start:end].strip() == b"MOTION":  # (no copy of a huge line)
             return start, end + 1
-        at = data.find(b"MOTION", at + 6)
+        # Resume after this line, not after this occurrence: a line repeating MOTION
+        # would otherwise be rescanned once per occurrence (quadratic; a 1 MB file took
+        # minutes). Lines are then each scanned a bounded number of times (hardening).
+        at = data.find(b"MOTION", end)
     return None
 
 
@@ -316,8 +351,18 @@ def _motion_values(data, start: int, first_line: int, frames: int, channels: int
     out = np.empty(min(frames * channels, (n - start + 1) // 2 + channels))
     buf, words = np.frombuffer(data, np.uint8), _decimals.byte_windows(data)
     rows, filled, line, last_row_line, pos = 0, 0, first_line, first_line - 1, start
+    max_row = channels * MAX_BYTES_PER_VALUE + 4096
     while pos < n:
-        stop = data.find(b"\n", pos + _CHUNK_BYTES) + 1 if pos + _CHUNK_BYTES < n else 0
+        stop = 0
+        if pos + _CHUNK_BYTES < n:
+            # The chunk ends at the first newline after _CHUNK_BYTES, searched only as far
+            # as a row can reach: a longer line is refused before it costs any memory.
+            stop = data.find(b"\n", pos + _CHUNK_BYTES, pos + _CHUNK_BYTES + max_row) + 1
+            if not stop and pos + _CHUNK_BYTES + max_row < n:
+                long_line = line + data.count(b"\n", pos, pos + _CHUNK_BYTES)
+                raise UserError(f"{source} line {long_line}: the line is longer than {max_row:,} bytes, far more than "
+                                f"a frame of {channels} values needs; every frame must be one line of exactly "
+                                f"{channels} numbers.")
         stop = stop or n  # find() gave -1: no newline left
         chunk = buf[pos:stop]
         line_ends = np.flatnonzero(chunk == 10)

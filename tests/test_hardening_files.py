@@ -187,6 +187,8 @@ HOSTILE_METADATA = {
     "retarget_version_text": {"retarget_version": "one"},
     "reference_wrong": {"representation": {"name": "euler", "reference": "xyz"}},
 }
+
+
 @pytest.mark.parametrize("case", sorted(HOSTILE_METADATA))
 def test_hostile_metadata_types_are_refused_with_one_sentence(tiny_checkpoint, tmp_path, case):
     path = _with_metadata(tiny_checkpoint, tmp_path / f"{case}.safetensors", **HOSTILE_METADATA[case])
