@@ -313,6 +313,9 @@ def _valid_pose(v: tuple, counters: Counter) -> bool:
     return True
 
 
+THREAD_BATCH = 256  # datagrams the receiver thread reads before handing frames over
+
+
 class VmcReceiver:
     """A UDP socket feeding a ``VmcParser``. Loopback by default: listening on every
     interface (bind="0.0.0.0") is a choice the user makes explicitly.
@@ -365,10 +368,10 @@ class VmcReceiver:
     def counters(self) -> Counter:
         return self.parser.counters
 
-    def _receive(self) -> list[VmcFrame]:
+    def _receive(self, limit: int = 100_000) -> list[VmcFrame]:
         frames: list[VmcFrame] = []
         sock, feed = self._sock, self.parser.feed
-        for _ in range(100_000):  # bounded so a flood cannot starve the caller forever
+        for _ in range(limit):  # bounded so a flood cannot starve the caller forever
             try:
                 data, sender = sock.recvfrom(65536)
             except BlockingIOError:
@@ -403,7 +406,10 @@ class VmcReceiver:
     def _run(self) -> None:
         while not self._stop.is_set():
             select.select([self._sock], [], [], 0.05)
-            frames = self._receive()
+            # Hand frames over every THREAD_BATCH datagrams: under a sustained flood the
+            # socket never empties, and frames queued only once it had been drained (up to
+            # 100,000 datagrams) reached the daemon seconds late or not at all (hardening).
+            frames = self._receive(THREAD_BATCH)
             if frames:
                 with self._ready:
                     self._queue.extend(frames)

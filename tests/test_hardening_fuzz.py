@@ -523,3 +523,40 @@ def test_serial_source_over_a_real_pyserial_port_takes_random_bytes():
         assert src.stats.disconnects == 0
     finally:
         src.close()
+
+
+# ------------------------------------------------- frames are delivered during a flood
+
+def test_the_receiver_thread_delivers_frames_while_a_flood_keeps_its_socket_full():
+    """Under a sustained flood the socket never empties. The receiver thread must still
+    hand over the frames it completes every few hundred datagrams, not only once it has
+    drained the socket (which, at flood rate, may be never)."""
+    from stylecast.drivers.vmc_in import VmcReceiver
+
+    receiver = VmcReceiver("127.0.0.1", 0, performer_id="p", rcvbuf=1 << 22)
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    junk = [encode_message("/VMC/Ext/Unknown", 1.0)] * 5000  # a flood that is already waiting
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (J, 1))
+    frame = encode_frame(np.zeros(3), q, humanoid_skeleton_default().offsets, 1.0)
+    fed = [0]
+    seen_at = []
+    feed = receiver.parser.feed
+
+    def counting_feed(*args):
+        fed[0] += 1
+        if receiver._queue and not seen_at:
+            seen_at.append(fed[0])
+        return feed(*args)
+
+    receiver.parser.feed = counting_feed
+    try:
+        for d in frame + junk:
+            sender.sendto(d, receiver.address)
+        receiver.start()
+        assert _wait(lambda: fed[0] >= len(frame) + len(junk), timeout=60)
+        frames = receiver.poll()
+    finally:
+        receiver.close()
+        sender.close()
+    assert len(frames) == 1
+    assert seen_at and seen_at[0] <= 1000, seen_at  # queued long before the 5,000 junk were read
