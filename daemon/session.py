@@ -46,7 +46,6 @@ class OutputFrame:
     root_position: np.ndarray  # (3,) cm, passed through
     rotations: np.ndarray  # (J, 4) restyled (blended) local rotations
     input_rotations: np.ndarray  # (J, 4) what came in (for --out-input)
-    held: bool = False
 
 
 class Session:

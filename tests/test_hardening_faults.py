@@ -253,7 +253,7 @@ def test_a_live_vmc_source_that_stops_is_held_then_reported_lost_then_resumes():
     assert "LOST" not in lines[0] and "alice LOST (no input)" in lines[1] and "LOST" not in lines[2]
     assert [st["lost"] for st in status] == [0, 1, 0]
     # While silent the avatar holds its last pose (same frame, no hip jump), one per tick.
-    # (A held tick re-sends the previous frame object; OutputFrame.held is never set.)
+    # (A held tick re-sends the previous frame object.)
     repeats = [k for k in range(1, len(frames)) if frames[k] is frames[k - 1]]
     assert len(repeats) == s.held and s.held >= 100 - HOP - 1
     last = frames[repeats[0] - 1]
