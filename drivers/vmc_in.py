@@ -221,11 +221,8 @@ class VmcParser:
         counters["messages"] += len(messages)
         for address, tags, args in messages:
             if address == "/VMC/Ext/Bone/Pos" or address == "/VMC/Ext/Root/Pos":
-                if tags[:8] != _POSE_TAGS:
-                    counters[_tag_problem(tags)] += 1
-                    continue
-                v = args[1:8]
-                if not _valid_pose(v, counters):
+                v = _pose_args(tags, args, counters)
+                if v is None:
                     continue
                 if address == "/VMC/Ext/Root/Pos":  # starts a frame (rule 2 in the docstring)
                     if st.has_pose and not st.sends_t:
@@ -254,11 +251,8 @@ class VmcParser:
                 if st.pending:
                     out.append(st.complete())
             elif address in _TRACKERS:
-                if tags[:8] != _POSE_TAGS:
-                    counters[_tag_problem(tags)] += 1
-                    continue
-                v = args[1:8]
-                if not _valid_pose(v, counters):
+                v = _pose_args(tags, args, counters)
+                if v is None:
                     continue
                 kind, local = _TRACKERS[address]
                 st.trackers.append((kind, local, args[0], v))
@@ -302,15 +296,21 @@ def _tag_problem(tags: str, expected: str = _POSE_TAGS) -> str:
     return "missing_args" if len(tags) < len(expected) and expected.startswith(tags) else "wrong_type"
 
 
-def _valid_pose(v: tuple, counters: Counter) -> bool:
+def _pose_args(tags: str, args: tuple, counters: Counter) -> tuple | None:
+    """The (px, py, pz, qx, qy, qz, qw) of a bone or tracker message (s fff ffff), or None
+    with the reason counted; extra trailing arguments are ignored, as the protocol asks."""
+    if tags[:8] != _POSE_TAGS:
+        counters[_tag_problem(tags)] += 1
+        return None
+    v = args[1:8]
     # A sum is finite exactly when every term is (float32 values cannot overflow a double).
     if not math.isfinite(v[0] + v[1] + v[2] + v[3] + v[4] + v[5] + v[6]):
         counters["non_finite"] += 1
-        return False
+        return None
     if v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6] < 1e-12:
         counters["bad_quaternion"] += 1
-        return False
-    return True
+        return None
+    return v
 
 
 THREAD_BATCH = 256  # datagrams the receiver thread reads before handing frames over
