@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import argparse
 import gzip
-import os
-import platform
 import random
 import statistics
 import sys
@@ -25,6 +23,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from machine import describe  # bench/machine.py (scripts run from bench/)
 
 from stylecast.motion import bvh
 
@@ -88,8 +88,7 @@ def main() -> int:
         print(f"no Bandai BVH files under {args.data}", file=sys.stderr)
         return 1
 
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
-          f"load average {os.getloadavg()[0]:.2f}; Python {platform.python_version()}, numpy {np.__version__}")
+    print("machine: " + describe())
     print(f"median of {args.repeats} runs; text is uncompressed BVH already in memory\n")
     print(f"{'clips':40s} {'case':26s} {'MB':>7s} {'MB/s wall':>10s} {'MB/s CPU':>9s} {'frames/s CPU':>13s}")
     for name, paths in sets.items():

@@ -26,14 +26,14 @@ every frame, so the boundaries counted are those of the 60-frame grid (frames 60
 from __future__ import annotations
 
 import multiprocessing as mp
-import os
-import platform
 import socket
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from machine import describe  # bench/machine.py (scripts run from bench/)
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "bandai"
@@ -42,21 +42,6 @@ FPS = 60.0
 
 
 # ----------------------------------------------------------------------------- helpers
-
-def machine_info() -> str:
-    cpu = "?"
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    import numpy
-    import scipy
-
-    load = os.getloadavg() if hasattr(os, "getloadavg") else ("?",)
-    return (f"machine: {cpu}, {os.cpu_count()} logical CPUs, load avg {load[0]:.2f} (shared box), "
-            f"{platform.system()} {platform.release()}, Python {platform.python_version()}, "
-            f"numpy {numpy.__version__}, scipy {scipy.__version__}")
-
 
 def restyler():
     from stylecast.daemon.restylers import StandInRestyler
@@ -411,7 +396,9 @@ def ReplaySourceRotations(motion):  # noqa: N802 (reads like the source it stand
 
 def main(argv):
     which = set(argv) or {"latency", "compute", "capacity", "cpu", "seams"}
-    print(machine_info())
+    import scipy
+
+    print("machine: " + describe(f"scipy {scipy.__version__}"))
     model, label = restyler()
     print(f"restyler: {label}")
     motion = base_motion()

@@ -11,14 +11,14 @@ The machine is shared, so the load average is printed with the results.
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import statistics
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from machine import describe  # bench/machine.py (scripts run from bench/)
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "bandai" / "dataset-2" / "data"
@@ -43,16 +43,6 @@ def throughput(fn, frames: int) -> tuple[float, float]:
     t, c = time.perf_counter(), time.process_time()
     fn()
     return frames / (time.perf_counter() - t), frames / max(time.process_time() - c, 1e-9)
-
-
-def cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def load_restyler(name):
@@ -136,8 +126,7 @@ def main() -> int:
 
     print(f"stylecast model benchmark ({kind} model {restyler.name}, generator "
           f"{count_parameters(G):,} parameters, representation {restyler.rep.name})")
-    print(f"machine: {cpu_name()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-          f"torch {torch.__version__}, 1 torch thread, load average {os.getloadavg()[0]:.2f} (shared machine)")
+    print("machine: " + describe(f"torch {torch.__version__}, 1 torch thread"))
     print()
     w = max(len(r[0]) for r in rows + thr) + 2
     print(f"{'inference (median of ' + str(args.repeats) + ')':<{w}}{'wall ms':>10}{'CPU ms':>10}  goal")

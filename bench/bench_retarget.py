@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import argparse
 import collections
-import os
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
+
+from machine import describe  # bench/machine.py (scripts run from bench/)
 
 from stylecast.motion import forward_kinematics
 from stylecast.motion.bvh import read_bvh
@@ -50,8 +50,7 @@ def main() -> None:
             worst = (path.name, err)
         conventions[tuple(sorted(retarget.twists.items()))] += 1
     e = np.array(errors) * 10.0  # cm -> mm
-    print(f"machine: {platform.machine()} {platform.processor() or ''}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}, numpy {np.__version__}")
+    print("machine: " + describe())
     print(f"clips: {len(files)}  frames: {frames}  retarget: {frames / seconds:,.0f} frames/s (calibration included)")
     print("| FK error vs source (mm) | value |\n|---|---|")
     for name, value in (("max", e.max()), ("p99", np.percentile(e, 99)), ("median", np.median(e))):

@@ -27,6 +27,8 @@ revision in the same runs, so the before/after ratio holds whatever the load.
 
 from __future__ import annotations
 
+from machine import describe  # bench/machine.py (scripts run from bench/)
+
 import os
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -95,19 +97,6 @@ def accuracy(files: list[Path], out) -> None:
     per = {n: np.concatenate(e).mean(0) for n, e in errs.items()}
     for i, j in enumerate(keep):
         print(f"{HUMANOID_BONES[j]:<15}" + "".join(f"{per[n][i]:13.2f}" for n in errs), file=out)
-
-
-def _machine() -> str:
-    import platform
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return (f"{cpu}, {os.cpu_count()} logical cores; Python {platform.python_version()}, "
-            f"numpy {np.__version__}")
 
 
 def _baseline(rev: str):
@@ -191,7 +180,7 @@ def throughput(path: Path | None, out, runs: int = 5, baseline: str | None = Non
     load1 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nthroughput: one performer, one thread, frames per CPU-second, median of {runs} runs "
           f"({n} live frames; {T} frames per batch)", file=out)
-    print(f"machine: {_machine()}; load average {load0:.1f} -> {load1:.1f} while measuring\n", file=out)
+    print(f"machine: {describe()}; load average {load0:.1f} -> {load1:.1f} while measuring\n", file=out)
     print(f"{'path':<52} {'frames/s':>10} {'us/frame':>9}", file=out)
     for name, r in rates.items():
         rate = float(np.median(r))

@@ -14,27 +14,17 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import statistics
 import time
 
 import numpy as np
+
+from machine import describe  # bench/machine.py (scripts run from bench/)
 from scipy.spatial.transform import Rotation
 
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.viewer.app import Viewer
 from stylecast.viewer.context import create_headless_context
-
-
-def machine() -> str:
-    model = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            model = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return f"{model}, {cores} cores available, {platform.system()} {platform.release()}"
 
 
 def poses(n: int, k: int, rng: np.random.Generator) -> np.ndarray:
@@ -86,7 +76,7 @@ def main() -> None:
     args = ap.parse_args()
     size = (args.width, args.height)
     ctx = create_headless_context()
-    print(f"machine:  {machine()}")
+    print(f"machine:  {describe()}")
     print(f"renderer: {ctx.info['GL_RENDERER']} / {ctx.info['GL_VERSION']}")
     print(f"image:    {size[0]}x{size[1]}, median of {args.runs} runs of {args.seconds:.1f} s each")
     if hasattr(os, "getloadavg"):  # a shared machine: say how busy it was

@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
-import os
-import platform
 import socket
 import statistics
 import sys
@@ -30,6 +28,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from machine import describe  # bench/machine.py (scripts run from bench/)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # a checkout without install
 
@@ -166,10 +166,8 @@ def main() -> None:
     args = ap.parse_args()
     from importlib.metadata import version
 
-    print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}, "
-          f"{os.cpu_count()} CPUs, load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-    print(f"python {platform.python_version()}, numpy {np.__version__}, python-osc {version('python-osc')}; "
-          f"median of {args.runs} runs\n")
+    print("machine: " + describe(f"python-osc {version('python-osc')}"))
+    print(f"median of {args.runs} runs\n")
     print(f"{'':32s} {'datagrams':>9s} {'bytes':>6s} {'stylecast us':>12s} {'python-osc us':>13s} {'speed-up':>8s}")
     for name, dg, size, fast, ref, ratio in bench_encode(args.runs) + bench_decode(args.runs):
         print(f"{name:32s} {dg:9d} {size:6d} {fast:12.1f} {ref:13.1f} {ratio:7.1f}x")

@@ -36,6 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
+from machine import describe  # bench/machine.py (scripts run from bench/)
+
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
@@ -265,9 +267,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.seconds > 120:
         ap.error("--seconds is capped at 120 (a bench, not a load generator)")
-    import os
-
-    print(f"machine: {os.cpu_count()} CPUs, load avg {os.getloadavg()[0]:.2f}")
+    print("machine: " + describe())
     run_flood(args.seconds, args.rate, args.performers, junk_to=args.junk_to, junk_senders=args.junk_senders,
               restyler=args.restyler)
     return 0
