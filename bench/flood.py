@@ -36,7 +36,6 @@ from pathlib import Path
 
 import numpy as np
 
-from machine import describe  # bench/machine.py (scripts run from bench/)
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -267,6 +266,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.seconds > 120:
         ap.error("--seconds is capped at 120 (a bench, not a load generator)")
+    from machine import describe  # bench/machine.py; imported here because the tests load this file by path
+
     print("machine: " + describe())
     run_flood(args.seconds, args.rate, args.performers, junk_to=args.junk_to, junk_senders=args.junk_senders,
               restyler=args.restyler)
