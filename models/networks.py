@@ -9,10 +9,19 @@ half rate -> upsample -> conv -> zero-initialised head giving a correction ``del
 the output is ``representation.combine(x, delta)`` (residual formulation: input plus a
 correction, in the representation's range). Starting from the identity map keeps the
 content and the input's smoothness from the first step; the adversarial loss only has
-to learn the style difference. The shortcut carries the input at full frame rate, so
-the half-rate trunk cannot add quantisation jitter. Convolutions pad by replication,
-so a word's edges behave like the motion simply continues (the edges are blended away
-by the stream code anyway).
+to learn the style difference. Convolutions pad by replication, so a word's edges
+behave like the motion simply continues (the edges are blended away by the stream
+code anyway).
+
+Smooth by construction (``correction_knots`` > 0): the correction is projected onto a
+cubic B-spline basis of that many control points spread over the word (a fixed
+least-squares projection, ``smooth_projection``), so it cannot carry content faster
+than the knot spacing: the generator can bend the posture and reshape the slow
+dynamics, but it cannot add jitter, whatever it learns. Measured in ``stylecast eval``
+(jerk ratio); without it (0, the first shipped model) the free full-rate correction
+learnt to shake hands and feet (jerk x2.3 the input's). Upsampling is a fixed matrix
+product too (``linear_upsample_matrix``: exactly ``nn.Upsample(mode="linear")``), whose
+backward pass, unlike that module's on CUDA, is deterministic.
 
 Discriminator (D_a, D_b): LSGAN patch discriminator (no sigmoid) over the word and its
 frame-to-frame differences (scaled up so velocities are visible next to poses): style
@@ -26,6 +35,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -40,6 +50,17 @@ class NetworkConfig:
     g_kernel: int = 5
     d_hidden: int = 64
     d_velocity_scale: float = 60.0  # frame differences x fps: angular velocity per second
+    # Control points of the cubic B-spline the correction is projected on (0 = none, the
+    # unconstrained full-rate correction of the first shipped model). 8 over a 60-frame
+    # word: ~7.5 frames between knots, nothing faster than ~4 Hz survives.
+    correction_knots: int = 8
+
+    MAY_BE_ZERO = ("correction_knots",)  # settings where 0 means "off" (a ClassVar: no field)
+
+    def __post_init__(self) -> None:
+        if self.correction_knots and not 4 <= self.correction_knots <= self.frames:
+            raise ValueError(f"correction_knots must be 0 (off) or between 4 (a cubic) and {self.frames}, "
+                             f"got {self.correction_knots}")
 
     @property
     def features(self) -> int:
@@ -65,6 +86,46 @@ def _conv(cin: int, cout: int, k: int, stride: int = 1) -> nn.Conv1d:
     return nn.Conv1d(cin, cout, k, stride=stride, padding=k // 2, padding_mode="replicate")
 
 
+# The fixed matrices below are built in numpy (construction time only, never on the hot
+# path) so that a network outlined on torch's "meta" device still gets real values.
+
+def linear_upsample_matrix(n: int) -> torch.Tensor:
+    """(n, 2n) matrix M with x @ M == nn.Upsample(scale_factor=2, mode="linear",
+    align_corners=False)(x) for x (..., n): half-pixel centres, edges clamped."""
+    pos = np.clip((np.arange(2 * n) + 0.5) / 2 - 0.5, 0, n - 1)
+    lo = np.floor(pos).astype(int)
+    hi = np.minimum(lo + 1, n - 1)
+    m = np.zeros((n, 2 * n))
+    cols = np.arange(2 * n)
+    np.add.at(m, (lo, cols), 1 - (pos - lo))
+    np.add.at(m, (hi, cols), pos - lo)
+    return torch.from_numpy(m.astype(np.float32))
+
+
+def bspline_basis(frames: int, knots: int, degree: int = 3) -> np.ndarray:
+    """(frames, knots) clamped uniform B-spline basis sampled at each frame (rows sum to 1;
+    the first and last frames sit exactly on the first and last control points)."""
+    t = np.concatenate([np.zeros(degree), np.linspace(0, 1, knots - degree + 1), np.ones(degree)])
+    x = np.linspace(0, 1, frames)
+    b = np.stack([(t[i] <= x) & (x < t[i + 1]) for i in range(len(t) - 1)], axis=1).astype(np.float64)
+    b[-1, knots - 1] = 1.0  # x = 1 closes the last non-empty knot interval
+    for d in range(1, degree + 1):  # Cox-de Boor recursion, vectorised over frames
+        cols = []
+        for i in range(len(t) - 1 - d):
+            left = (x - t[i]) / (t[i + d] - t[i]) if t[i + d] > t[i] else 0.0
+            right = (t[i + d + 1] - x) / (t[i + d + 1] - t[i + 1]) if t[i + d + 1] > t[i + 1] else 0.0
+            cols.append(left * b[:, i] + right * b[:, i + 1])
+        b = np.stack(cols, axis=1)
+    return b
+
+
+def smooth_projection(frames: int, knots: int) -> torch.Tensor:
+    """(frames, frames) least-squares projection onto the B-spline basis: x @ P is the
+    smooth curve closest to x (P = B (B^T B)^-1 B^T, symmetric)."""
+    b = bspline_basis(frames, knots)
+    return torch.from_numpy((b @ np.linalg.solve(b.T @ b, b.T)).astype(np.float32))
+
+
 class ResBlock(nn.Module):
     def __init__(self, ch: int, k: int):
         super().__init__()
@@ -84,7 +145,10 @@ class Generator(nn.Module):
         self.stem = _conv(f, h, k)
         self.down = nn.Conv1d(h, h, 4, stride=2, padding=1, padding_mode="replicate")
         self.blocks = nn.Sequential(*[ResBlock(h, 3) for _ in range(cfg.g_blocks)])
-        self.up = nn.Upsample(scale_factor=2, mode="linear", align_corners=False)
+        half = (cfg.frames + 2 - 4) // 2 + 1  # length after the strided conv
+        self.register_buffer("upsample", linear_upsample_matrix(half), persistent=False)
+        self.register_buffer("smooth", smooth_projection(cfg.frames, cfg.correction_knots)
+                             if cfg.correction_knots else None, persistent=False)
         self.fuse = _conv(2 * h, h, 3)
         self.head = nn.Conv1d(h, f, 1)
         self.act = nn.LeakyReLU(0.2)
@@ -94,9 +158,12 @@ class Generator(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         s = self.act(self.stem(x))
         y = self.blocks(self.act(self.down(s)))
-        y = self.up(y)
+        y = y @ self.upsample
         y = self.act(self.fuse(torch.cat([y, s], dim=1)))  # skip connection at full rate
-        return self.combine(x, self.head(y))
+        delta = self.head(y)
+        if self.smooth is not None:
+            delta = delta @ self.smooth
+        return self.combine(x, delta)
 
 
 class Discriminator(nn.Module):

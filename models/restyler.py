@@ -98,13 +98,17 @@ class Restyler:
         from .networks import NetworkConfig
 
         settings = meta["network"]
+        if isinstance(settings, dict) and "correction_knots" not in settings:
+            # Checkpoints from before the smooth correction existed: a free full-rate one.
+            settings = {**settings, "correction_knots": 0}
         fields = NetworkConfig.__dataclass_fields__
         if not isinstance(settings, dict) or set(settings) - set(fields):
             raise UserError(f"checkpoint {path} has network settings this stylecast does not understand; use a "
                             f"matching stylecast or retrain")
         for key, value in settings.items():
             kind = fields[key].type
-            ok = (isinstance(value, int) and not isinstance(value, bool) and 0 < value <= MAX_NETWORK_SIZE) \
+            smallest = 0 if key in NetworkConfig.MAY_BE_ZERO else 1
+            ok = (isinstance(value, int) and not isinstance(value, bool) and smallest <= value <= MAX_NETWORK_SIZE) \
                 if kind in (int, "int") \
                 else (isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value))
             if not ok:
