@@ -33,6 +33,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="words of each style drawn per epoch (default 1024)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--representation", choices=("euler", "6d"), default="euler")
+    p.add_argument("--knots", type=int,
+                   help="control points of the smooth (cubic B-spline) correction over a word; 0 = a free "
+                        "full-rate correction (default: the shipped models' setting)")
+    p.add_argument("--lambda-gram", type=float, default=0.0,
+                   help="weight of the velocity Gram-matrix dynamics-style loss (seed 004); default 0 = off")
     p.add_argument("--out", type=Path, required=True, help="output folder (checkpoints, losses.csv, model)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last epoch")
     p.add_argument("--max-words", type=_positive_int, help="use at most N training words per style (tiny CI runs)")
@@ -86,11 +91,17 @@ def run_train(args) -> int:
     _threads(args.threads)
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss, epochs=args.epochs,
                       batch_size=args.batch_size, words_per_epoch=args.words_per_epoch, seed=args.seed,
-                      representation=args.representation, max_words=args.max_words, network=NetworkConfig())
-    if args.style_a == args.style_b:
-        from stylecast.motion.errors import UserError
+                      representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram)
+    from stylecast.motion.errors import UserError
 
+    if args.style_a == args.style_b:
         raise UserError(f"--style-a and --style-b are both {args.style_a!r}; choose two different styles")
+    if not args.lambda_gram >= 0:
+        raise UserError(f"--lambda-gram must be 0 or more, got {args.lambda_gram:g}")
+    try:
+        cfg.network = NetworkConfig() if args.knots is None else NetworkConfig(correction_knots=args.knots)
+    except ValueError as exc:
+        raise UserError(f"--knots: {exc}") from None
     sets = load_training_words(cfg, args.data, args.cache, progress=not args.no_progress)
     train(cfg, args.out, sets[(cfg.style_a, "train")].words, sets[(cfg.style_b, "train")].words,
           sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,

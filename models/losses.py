@@ -19,7 +19,9 @@ import torch
 LAMBDA_CYCLE = 20.0
 LAMBDA_DIFF = 0.01
 LAMBDA_COHERENCE = 0.001
+LAMBDA_GRAM = 0.0  # off unless asked for: the dynamics-style term is an option (seed 004)
 LOSS_KINDS = ("cycle-diff", "coherence")
+FPS = 60.0  # frames per second of a word: velocities below are per second
 
 
 def _per_word_mean(x: torch.Tensor) -> torch.Tensor:
@@ -61,6 +63,19 @@ def coherence_loss(generated: torch.Tensor) -> torch.Tensor:
     return _per_word_sum(diff(generated).abs())
 
 
+# Seed 004's dynamics style: Gram matrices of velocity features. A word's Gram matrix
+# G = V V^T / (T-1), V the (F, T-1) frame-to-frame velocities, says which bones move
+# together and how strongly, regardless of when; matching the batch-mean Gram of generated
+# and real words of the target style asks for the target's dynamics without pairing words.
+def velocity_gram(x: torch.Tensor) -> torch.Tensor:
+    v = diff(x) * FPS
+    return v @ v.transpose(1, 2) / v.shape[-1]
+
+
+def gram_loss(generated: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
+    return ((velocity_gram(generated).mean(dim=0) - velocity_gram(real).mean(dim=0)) ** 2).mean()
+
+
 @dataclass
 class GeneratorLosses:
     adv_a2b: torch.Tensor
@@ -69,16 +84,19 @@ class GeneratorLosses:
     cycle_b: torch.Tensor
     temporal_a: torch.Tensor  # L_diff,a or L_coherence,a depending on the loss kind
     temporal_b: torch.Tensor
+    gram_a2b: torch.Tensor  # dynamics style of the generated B words against real B words
+    gram_b2a: torch.Tensor
     total: torch.Tensor
 
 
 def generator_objective(kind: str, a, b, fake_b, fake_a, rec_a, rec_b, d_b_fake, d_a_fake,
                         lambda_cycle: float = LAMBDA_CYCLE, lambda_diff: float = LAMBDA_DIFF,
-                        lambda_coherence: float = LAMBDA_COHERENCE) -> GeneratorLosses:
+                        lambda_coherence: float = LAMBDA_COHERENCE, lambda_gram: float = LAMBDA_GRAM) -> GeneratorLosses:
     """The generators' part of (11): L_Ga2b + L_Gb2a + lambda_cycle (L_cycle,a + L_cycle,b)
     + lambda_diff (L_diff,a + L_diff,b) for "cycle-diff"; the baseline "coherence" swaps
     the last term for lambda_coherence (L_coherence,a + L_coherence,b). Nothing else
-    differs between the two."""
+    differs between the two. ``lambda_gram`` > 0 adds the dynamics-style term
+    lambda_gram (L_gram(G_a2b(a), b) + L_gram(G_b2a(b), a)) to either."""
     if kind not in LOSS_KINDS:
         raise ValueError(f"loss must be one of {LOSS_KINDS}, got {kind!r}")
     adv_a2b = generator_loss(d_b_fake)
@@ -90,4 +108,9 @@ def generator_objective(kind: str, a, b, fake_b, fake_a, rec_a, rec_b, d_b_fake,
     else:
         t_a, t_b, lam = coherence_loss(fake_b), coherence_loss(fake_a), lambda_coherence
     total = adv_a2b + adv_b2a + lambda_cycle * (cyc_a + cyc_b) + lam * (t_a + t_b)
-    return GeneratorLosses(adv_a2b, adv_b2a, cyc_a, cyc_b, t_a, t_b, total)
+    if lambda_gram > 0:
+        g_ab, g_ba = gram_loss(fake_b, b), gram_loss(fake_a, a)
+        total = total + lambda_gram * (g_ab + g_ba)
+    else:  # not computed: reported as zero
+        g_ab = g_ba = torch.zeros((), device=total.device)
+    return GeneratorLosses(adv_a2b, adv_b2a, cyc_a, cyc_b, t_a, t_b, g_ab, g_ba, total)

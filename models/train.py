@@ -40,7 +40,7 @@ from . import representation as R
 from .representation import euler_features, get_representation
 
 CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
-              "temporal_b", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
+              "temporal_b", "gram_a2b", "gram_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
               "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
 
 
@@ -64,6 +64,7 @@ class TrainConfig:
     lambda_cycle: float = L.LAMBDA_CYCLE
     lambda_diff: float = L.LAMBDA_DIFF
     lambda_coherence: float = L.LAMBDA_COHERENCE
+    lambda_gram: float = L.LAMBDA_GRAM
     network: NetworkConfig = field(default_factory=NetworkConfig)
 
     def to_dict(self) -> dict:
@@ -107,7 +108,8 @@ def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
         "retarget_version": RETARGET_VERSION,
         "network": cfg.network.to_dict(),
         "loss": cfg.loss,
-        "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence},
+        "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence,
+                    "gram": cfg.lambda_gram},
         "training": {k: v for k, v in cfg.to_dict().items() if k != "network"},
         "training_data": f"{D.DATA_NAME}: styles {cfg.style_a} and {cfg.style_b}, training split by file "
                          f"(SHA-1 of file name, {int(D.VAL_FRACTION * 100)}% held out)",
@@ -171,7 +173,7 @@ class Trainer:
         rec_a = m.G_b2a(fake_b)
         rec_b = m.G_a2b(fake_a)
         g = L.generator_objective(cfg.loss, a, b, fake_b, fake_a, rec_a, rec_b, m.D_b(fake_b), m.D_a(fake_a),
-                                  cfg.lambda_cycle, cfg.lambda_diff, cfg.lambda_coherence)
+                                  cfg.lambda_cycle, cfg.lambda_diff, cfg.lambda_coherence, cfg.lambda_gram)
         self.opt_g.zero_grad(set_to_none=True)
         g.total.backward()
         self.opt_g.step()
@@ -184,7 +186,8 @@ class Trainer:
         self.opt_d.step()
         return {"G_a2b": g.adv_a2b.item(), "G_b2a": g.adv_b2a.item(), "D_a": d_a.item(), "D_b": d_b.item(),
                 "cycle_a": g.cycle_a.item(), "cycle_b": g.cycle_b.item(), "temporal_a": g.temporal_a.item(),
-                "temporal_b": g.temporal_b.item(), "G_total": g.total.item()}
+                "temporal_b": g.temporal_b.item(), "gram_a2b": g.gram_a2b.item(), "gram_b2a": g.gram_b2a.item(),
+                "G_total": g.total.item()}
 
     def _to(self, words):
         return to_channels(words).to(self.device)
