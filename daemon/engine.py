@@ -116,7 +116,7 @@ class Daemon:
             skeleton = source.skeleton if source.skeleton is not None else humanoid_skeleton_default()
             if tuple(skeleton.names) != HUMANOID_BONES:
                 raise UserError(f"source {source.performer!r} does not deliver the humanoid skeleton")
-            session = Session(k, source, staggered(self.settings, k, len(sources)), len(HUMANOID_BONES))
+            session = Session(k, source, staggered(self.settings, k, len(sources)), skeleton)
             session.intensity = self.config.intensity
             session.set_bypass(self.config.bypass)
             self.sessions.append(session)

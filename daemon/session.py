@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylecast.motion.clip import PoseFrame
+from stylecast.motion.footlock import FootLock
+from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter
 
 from .status import LatencyWindow
@@ -49,13 +51,16 @@ class OutputFrame:
 
 
 class Session:
-    def __init__(self, index: int, source, settings: BlendSettings, num_bones: int):
+    def __init__(self, index: int, source, settings: BlendSettings, skeleton: Skeleton):
         self.index = index
         self.source = source
         self.performer = source.performer
         self.settings = settings
         self.cutter = WordCutter(settings.hop, settings.word_length, settings.phase)
-        self.blender = SeamBlender(settings, num_bones)
+        self.blender = SeamBlender(settings, len(skeleton))
+        # Planted feet of the input stay planted in the output (after the blender, as
+        # offline ``restyle`` does); it looks ahead into the ``delay`` frames buffered.
+        self.feet = FootLock.for_stream(skeleton, settings.delay)
         self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
         self.frames_in = 0
         self.out_t: int | None = None  # next output frame index
@@ -95,7 +100,9 @@ class Session:
     def push(self, frame: PoseFrame, held: bool = False) -> list[tuple[int, np.ndarray]]:
         t = self.cutter.frames_seen
         rotations = np.asarray(frame.rotations, dtype=np.float64)
-        self._inputs.append((t, float(frame.timestamp), np.asarray(frame.root_position, np.float64), rotations))
+        root = np.asarray(frame.root_position, np.float64)
+        self._inputs.append((t, float(frame.timestamp), root, rotations))
+        self.feet.push(root, rotations)
         if not held:
             self.frames_in += 1
         out = self.cutter.push(rotations)
@@ -149,6 +156,7 @@ class Session:
         _, arrival, root, input_rot = self._input(t)
         active = (not self.bypass) and self.blender.serving_word(t) >= self._resume_end
         rotations = self.blender.render(t, input_rot, self.intensity, active)
+        rotations = self.feet.apply(t, root, input_rot[None], rotations[None])[0]
         self.out_t = t + 1
         self.frames_out += 1
         frame = OutputFrame(self.performer, t, arrival, root, rotations, input_rot)

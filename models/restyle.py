@@ -58,11 +58,14 @@ def word_switches(num_frames: int, hop: int, crossfade_frames: int = CROSSFADE_F
 
 def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = 15, intensity: float = 1.0,
                       crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
-                      live: bool = False) -> np.ndarray:
+                      live: bool = False, roots: np.ndarray | None = None, skeleton=None) -> np.ndarray:
     """Humanoid rotations (T, J, 4) at 60 fps -> restyled (T, J, 4), any T >= 1.
     ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
     mirrored padding, so the result is frame for frame what the daemon sends for the same
-    motion (pass-through until the first word is due, then the fade-in)."""
+    motion (pass-through until the first word is due, then the fade-in). With the root
+    positions ``roots`` (T, 3) and the humanoid ``skeleton`` the planted feet are locked
+    (``motion.footlock``), as the daemon does; without them they are not."""
+    from stylecast.motion.footlock import FootLock
     from stylecast.motion.words import BlendSettings, restyle_stream
 
     if not 1 <= hop <= WORD_LENGTH:
@@ -72,7 +75,11 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = 15, inten
     before, after = (0, 0) if live else padding(hop, settings.crossfade_frames, settings.decay_frames)
     idx = mirror_indices(T, before, after)
     padded = rot.canonical_hemisphere(np.asarray(rotations, dtype=np.float64)[idx])
-    out = restyle_stream(padded, restyle_words, settings, intensity=intensity)
+    feet = None
+    if skeleton is not None and roots is not None:
+        feet = FootLock.for_stream(skeleton, settings.delay)
+        roots = np.asarray(roots, dtype=np.float64)[idx]
+    out = restyle_stream(padded, restyle_words, settings, intensity=intensity, roots=roots, feet=feet)
     return out[before:before + T]
 
 
@@ -99,7 +106,8 @@ def restyle_clip(clip, restyler, hop: int = 15, intensity: float = 1.0, fps: flo
     retarget = Retarget.for_clip(clip, user_map)
     humanoid = retarget.to_humanoid(clip)
     h60 = resample(humanoid, FPS)
-    restyled60 = restyle_rotations(h60.rotations, restyler.restyle_words, hop, intensity, live=live)
+    restyled60 = restyle_rotations(h60.rotations, restyler.restyle_words, hop, intensity, live=live,
+                                   roots=h60.root_positions, skeleton=h60.skeleton)
     out_fps = float(fps) if fps else clip.fps
     if abs(out_fps - clip.fps) < 1e-9:
         template, h_template = clip, humanoid

@@ -226,7 +226,8 @@ class SeamBlender:
 
 
 def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings,
-                   intensity: float = 1.0, batch: int = 64) -> np.ndarray:
+                   intensity: float = 1.0, batch: int = 64, roots: np.ndarray | None = None,
+                   feet=None) -> np.ndarray:
     """Offline: run a whole clip's humanoid rotations (T, J, 4) through the same cutter and
     blender the daemon uses, with every word restyled in time (never late).
 
@@ -234,6 +235,8 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     (repeated) until a word covers the final real frame, exactly as the daemon holds a
     stalled source. ``restyle_words`` maps words (B, 60, J, 4) to restyled words of the
     same shape; batching does not change the result because words are independent.
+    ``feet``: a ``footlock.FootLock`` (with the clip's root positions ``roots`` (T, 3))
+    that keeps planted feet where the input put them, as the daemon does after blending.
     """
     T, J = rotations.shape[:2]
     blender = SeamBlender(settings, J)
@@ -250,4 +253,11 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
         restyled = restyle_words(np.stack(words[i:i + batch]))
         for end, word in zip(ends[i:i + batch], restyled):
             blender.add_word(end, word)
-    return blender.render_block(0, rotations, intensity)
+    out = blender.render_block(0, rotations, intensity)
+    if feet is None:
+        return out
+    # The daemon holds an ended source's last frame for at least ``delay`` >= ramp frames.
+    tail = max(held, feet.ramp)
+    feet.push(np.concatenate([roots, np.repeat(roots[-1:], tail, axis=0)]),
+              np.concatenate([rotations, np.repeat(rotations[-1:], tail, axis=0)]))
+    return feet.apply(0, roots, rotations, out)

@@ -15,6 +15,7 @@ from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.drivers.bvh_replay import ReplaySource
 from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip
+from stylecast.motion.footlock import FootLock
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings, restyle_stream
 
@@ -61,12 +62,15 @@ def offline(clip: Clip, restyler, hop: int) -> np.ndarray:
     """What `stylecast restyle --live --hop HOP` computes for this humanoid motion."""
     from stylecast.models.restyle import restyle_rotations
 
-    return restyle_rotations(clip.rotations, restyler.restyle_words, hop, crossfade_frames=30, live=True)
+    return restyle_rotations(clip.rotations, restyler.restyle_words, hop, crossfade_frames=30, live=True,
+                             roots=clip.root_positions, skeleton=clip.skeleton)
 
 
 def test_restyle_live_is_the_shared_stream_code():
     clip, restyler = walk_clip(200), StandInRestyler()
-    direct = restyle_stream(clip.rotations, restyler.restyle_words, BlendSettings(hop=15, crossfade_frames=30))
+    settings = BlendSettings(hop=15, crossfade_frames=30)
+    feet = FootLock.for_stream(clip.skeleton, settings.delay)
+    direct = restyle_stream(clip.rotations, restyler.restyle_words, settings, roots=clip.root_positions, feet=feet)
     assert rot.angle_between(offline(clip, StandInRestyler(), 15), direct).max() < 1e-9
 
 
@@ -110,7 +114,8 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root):
     motion = humanoid_motion(read_bvh(path))
     restyler = Restyler.load(str(CHECKPOINT))
     for hop in (1, 15):
-        _, frames = run_daemon(motion, restyler, hop=hop)
+        daemon, frames = run_daemon(motion, restyler, hop=hop)
+        assert daemon.sessions[0].feet.locked_frames > 60  # a walk plants its feet: the lock is compared too
         live = np.stack([f.rotations for f in frames["p0"]])
         expected = offline(resample(motion, 60.0), restyler, hop)
         assert live.shape == expected.shape

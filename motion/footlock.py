@@ -1,0 +1,237 @@
+"""Planted feet stay planted: foot contacts of the input, and a two-bone leg IK that puts
+each planted foot of the restyled output back where the input put it.
+
+A restyle changes every bone's rotation, hips and legs included, while the root
+trajectory passes through: without a fix, a foot the performer keeps still on the floor
+drifts with the restyled hips and knees (the first shipped model slid planted feet by
+1 cm per frame, 13x the input). This stage runs after the seam blender on every output
+frame, live and offline alike (``SeamBlender`` -> ``FootLock.apply``), so ``restyle``
+and ``serve`` send the same frames.
+
+Contacts (``FootLock.push``, per input frame, in arrival order): a foot is planted when
+its ankle or its ball is near the floor and nearly still, with hysteresis (a higher bar
+to let go than to plant) so a noisy foot does not flicker. The floor is the lowest the
+ball of the foot has been over the last ``floor_window`` frames (live sources do not say
+where their floor is).
+
+Lock (``FootLock.apply``, per output frame t): the leg weight w(t) rises to 1 over
+``ramp`` frames before a contact and falls over ``ramp`` frames after it (a triangle
+dilation of the contacts, which looks ``ramp`` frames ahead: the daemon has ``delay``
+frames of input beyond the frame it renders, so ``ramp`` <= delay). Where w > 0 the
+hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle and
+the knee bends in the plane of the input's knee; the foot takes the input's world
+rotation and the toes the input's local one. The result is slerped with the restyled
+leg by w. Only rotations change, so bone lengths are kept by construction. The target
+is the input's ankle at every frame (not a position frozen at touch-down), so a
+mistaken contact costs nothing worse than the input's own leg for a few frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from . import rotations as rot
+from .humanoid import HUMANOID_BONES
+from .skeleton import Skeleton
+
+LEGS = tuple(tuple(HUMANOID_BONES.index(f"{side}{b}") for b in ("UpperLeg", "LowerLeg", "Foot", "Toes"))
+             for side in ("Left", "Right"))
+HIPS = HUMANOID_BONES.index("Hips")
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """Thresholds in centimetres and centimetres per frame at 60 fps. Measured on the
+    Bandai walks: a planted foot moves 0.03-0.08 cm/frame, a swinging one 3-6."""
+
+    plant_height: float = 4.0  # ankle or ball at most this far above its floor height
+    plant_speed: float = 0.6  # ...and its slower joint moving less than this
+    release_height: float = 7.0  # let go above this
+    release_speed: float = 1.5  # ...or faster than this
+    floor_window: int = 240  # frames (4 s) over which the floor is the lowest ball height
+    ramp: int = 6  # frames over which a lock blends in before and out after a contact
+
+
+def leg_chain(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray):
+    """Forward kinematics of the Hips and both legs only, vectorised over frames.
+
+    roots (n, 3), rotations (n, J, 4) -> world positions (n, 2, 4, 3) of each leg's
+    joints (hip socket, knee, ankle, ball of the foot), world rotations (n, 2, 4, 4) of
+    UpperLeg, LowerLeg, Foot and Toes, and the Hips' world rotation (n, 4)."""
+    hips = rotations[:, HIPS]
+    pos = np.empty((len(roots), 2, 4, 3))
+    world = np.empty((len(roots), 2, 4, 4))
+    for side, chain in enumerate(LEGS):
+        parent_rot, parent_pos = hips, roots
+        for k, j in enumerate(chain):
+            pos[:, side, k] = parent_pos + rot.apply(parent_rot, offsets[j])
+            world[:, side, k] = parent_rot = rot.multiply(parent_rot, rotations[:, j])
+            parent_pos = pos[:, side, k]
+    return pos, world, hips
+
+
+def _shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Vectorised smallest rotation turning unit vectors a onto b (..., 3) -> (..., 4).
+    Leg corrections are far from half turns, where this form would lose its axis."""
+    q = np.concatenate([np.cross(a, b), 1.0 + np.sum(a * b, axis=-1, keepdims=True)], axis=-1)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
+
+
+def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, ankle_target: np.ndarray,
+               knee_pole: np.ndarray, foot_world: np.ndarray) -> np.ndarray:
+    """Two-bone IK of both legs: local rotations (n, 2, 3, 4) of UpperLeg, LowerLeg and
+    Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches),
+    bend the knee towards ``knee_pole`` (n, 2, 3) and give the foot the world rotation
+    ``foot_world`` (n, 2, 4); the hips are those of ``rotations``."""
+    pos, world, hips = leg_chain(roots, rotations, offsets)
+    out = np.empty((len(roots), 2, 3, 4))
+    for side, (_, lower, foot, _) in enumerate(LEGS):
+        l1, l2 = np.linalg.norm(offsets[lower]), np.linalg.norm(offsets[foot])
+        socket, knee, ankle = pos[:, side, 0], pos[:, side, 1], pos[:, side, 2]
+        to_target = ankle_target[:, side] - socket
+        dist = np.clip(np.linalg.norm(to_target, axis=-1), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
+        axis = _unit(to_target)
+        along = (l1 * l1 - l2 * l2 + dist * dist) / (2 * dist)  # law of cosines
+        height = np.sqrt(np.maximum(l1 * l1 - along * along, 0.0))
+        pole = knee_pole[:, side] - socket
+        bend = _unit(pole - np.sum(pole * axis, axis=-1, keepdims=True) * axis)
+        new_knee = socket + along[:, None] * axis + height[:, None] * bend
+        new_ankle = socket + dist[:, None] * axis
+        # Swing each bone onto its new direction from where it points now (keeps twist).
+        upper_world = rot.multiply(_shortest_arc(_unit(knee - socket), _unit(new_knee - socket)),
+                                   world[:, side, 0])
+        lower_now = rot.multiply(upper_world, rotations[:, lower])
+        shin_now = rot.apply(lower_now, offsets[foot])
+        lower_world = rot.multiply(_shortest_arc(_unit(shin_now), _unit(new_ankle - new_knee)), lower_now)
+        out[:, side, 0] = rot.multiply(rot.inverse(hips), upper_world)  # the legs hang off the Hips
+        out[:, side, 1] = rot.multiply(rot.inverse(upper_world), lower_world)
+        out[:, side, 2] = rot.multiply(rot.inverse(lower_world), foot_world[:, side])
+    return out
+
+
+class FootLock:
+    """Contact detection on the input stream and the lock on the output stream (see the
+    module docstring). ``push`` every input frame (index t = 0, 1, ... in order), then
+    ``apply`` output frames up to ``ramp`` frames behind the newest pushed input."""
+
+    def __init__(self, skeleton: Skeleton, ramp: int | None = None, settings: ContactSettings = ContactSettings()):
+        if tuple(skeleton.names) != HUMANOID_BONES:
+            raise ValueError("the foot lock works on the canonical humanoid skeleton")
+        self.offsets = np.asarray(skeleton.offsets, dtype=np.float64)
+        self.settings = settings
+        self.ramp = settings.ramp if ramp is None else max(0, int(ramp))
+        self.frames = 0  # input frames pushed
+        self._planted = np.zeros(2, dtype=bool)  # hysteresis state per foot
+        self._floor_history = np.zeros(0)  # lower ball height of the last floor_window - 1 frames
+        self._previous = None  # (ankle, ball) positions of the last pushed frame
+        self._contacts = np.zeros((0, 2), dtype=bool)  # contacts of frames _base ..
+        self._base = 0
+        self.planted_frames = 0  # counters for the status line and tests
+        self.locked_frames = 0
+
+    @classmethod
+    def for_stream(cls, skeleton: Skeleton, delay: int) -> "FootLock":
+        """The lock a stream with ``delay`` frames of look-ahead can run: its ramp looks
+        ahead at most ``delay`` frames (the daemon and ``restyle`` both build it here)."""
+        return cls(skeleton, ramp=min(ContactSettings.ramp, delay))
+
+    # -- input side ---------------------------------------------------------------------
+    def push(self, roots: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+        """Input frames (n, 3) roots and (n, J, 4) local rotations, in order. Returns
+        their contacts (n, 2) bool (left, right)."""
+        roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
+        rotations = np.asarray(rotations, dtype=np.float64).reshape(len(roots), -1, 4)
+        s = self.settings
+        pos, _, _ = leg_chain(roots, rotations, self.offsets)
+        ankle, ball = pos[:, :, 2], pos[:, :, 3]
+        # Floor: the lowest ball height over the window, this frame included (causal).
+        heights = np.concatenate([self._floor_history, ball[:, :, 1].min(axis=1)])
+        padded = np.concatenate([np.full(s.floor_window - 1, np.inf), heights])
+        lowest = sliding_window_view(padded, s.floor_window)[-len(roots):].min(axis=1)
+        self._floor_history = heights[len(heights) - (s.floor_window - 1):]
+        # The ball rests at the floor, the ankle one foot-height above it.
+        rest_ankle = self._ankle_rest_height()
+        height = np.minimum(ball[:, :, 1] - lowest[:, None], ankle[:, :, 1] - lowest[:, None] - rest_ankle)
+        prev = self._previous if self._previous is not None else (ankle[:1], ball[:1])
+        speed = np.minimum(_speeds(np.concatenate([prev[0], ankle])), _speeds(np.concatenate([prev[1], ball])))
+        self._previous = (ankle[-1:], ball[-1:])
+        plant = (height < s.plant_height) & (speed < s.plant_speed)
+        release = (height > s.release_height) | (speed > s.release_speed)
+        contacts = _hysteresis(plant, release, self._planted)
+        self._planted = contacts[-1].copy()
+        self._contacts = np.concatenate([self._contacts, contacts])
+        self.frames += len(roots)
+        self.planted_frames += int(contacts.sum())
+        return contacts
+
+    def _ankle_rest_height(self) -> float:
+        """How far the ankle sits above the ball when the foot stands flat: the foot
+        bone's vertical extent in the T-pose (feet point forward and down)."""
+        return float(np.mean([-self.offsets[toes][1] for _, _, _, toes in LEGS]))
+
+    # -- output side --------------------------------------------------------------------
+    def weights(self, t0: int, n: int) -> np.ndarray:
+        """Lock weights (n, 2) of output frames t0 .. t0+n-1 (needs inputs to t0+n-1+ramp)."""
+        r = self.ramp
+        lo = t0 - r
+        idx = np.arange(lo, t0 + n + r) - self._base
+        valid = (idx >= 0) & (idx < len(self._contacts))
+        c = np.zeros((len(idx), 2))
+        c[valid] = self._contacts[idx[valid]]
+        if r == 0:
+            return c
+        tri = 1.0 - np.abs(np.arange(-r, r + 1)) / (r + 1)
+        windows = sliding_window_view(c, 2 * r + 1, axis=0)  # (n, 2, 2r+1)
+        return (windows * tri).max(axis=-1)
+
+    def apply(self, t0: int, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+        """Output frames t0 .. t0+n-1: their roots (n, 3), input rotations and restyled
+        rotations (n, J, 4) -> the restyled rotations with planted feet locked."""
+        roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
+        outputs = np.asarray(outputs, dtype=np.float64)
+        w = self.weights(t0, len(roots))
+        self._forget_before(t0 - self.ramp)
+        rows = np.flatnonzero(w.max(axis=1) > 0)
+        if len(rows) == 0:
+            return outputs
+        inputs = np.asarray(inputs, dtype=np.float64)
+        pos_in, world_in, _ = leg_chain(roots[rows], inputs[rows], self.offsets)
+        solved = solve_legs(roots[rows], outputs[rows], self.offsets, pos_in[:, :, 2], pos_in[:, :, 1],
+                            world_in[:, :, 2])
+        result = outputs.copy()
+        for side, (upper, lower, foot, toes) in enumerate(LEGS):
+            weight = w[rows, side]
+            for k, bone in enumerate((upper, lower, foot)):
+                result[rows, bone] = rot.slerp(outputs[rows, bone], solved[:, side, k], weight)
+            result[rows, toes] = rot.slerp(outputs[rows, toes], inputs[rows, toes], weight)
+        self.locked_frames += int(np.count_nonzero(w >= 1.0))
+        return result
+
+    def _forget_before(self, t: int) -> None:
+        drop = t - self._base
+        if drop > 256:  # trim in chunks: a long stream keeps a bounded history
+            self._contacts = self._contacts[drop:]
+            self._base += drop
+
+
+def _speeds(positions: np.ndarray) -> np.ndarray:
+    """(n+1, 2, 3) consecutive positions -> (n, 2) distance moved per frame."""
+    return np.linalg.norm(np.diff(positions, axis=0), axis=-1)
+
+
+def _hysteresis(plant: np.ndarray, release: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """State per frame and foot: on at ``plant``, off at ``release``, else as before,
+    vectorised: each frame takes the most recent event at or before it."""
+    n = len(plant)
+    event = np.where(plant, 1, np.where(release, -1, 0))  # the two tests never hold together
+    idx = np.where(event != 0, np.arange(n)[:, None], -1)
+    last = np.maximum.accumulate(idx, axis=0)
+    taken = np.take_along_axis(event, np.maximum(last, 0), axis=0)
+    return np.where(last >= 0, taken > 0, start[None, :])
