@@ -1,7 +1,8 @@
-"""Small word classifiers for evaluation: style (is a window normal or exhausted?) and
-content (which of the 10 actions?). Trained on real training-split words only, judged on
+"""Small word classifiers for evaluation: style (which of the seven styles?) and content
+(which of the 10 actions?). Trained on real training-split words only, judged on
 held-out files. They are measuring instruments, deliberately unlike the discriminators:
-a 1-D conv net with global average pooling over time, trained with cross-entropy.
+a 1-D conv net with global average pooling over time, trained with cross-entropy. The
+pooled layer (``embed``) is the feature space of the Frechet motion distance.
 """
 
 from __future__ import annotations
@@ -67,15 +68,29 @@ class WordClassifier:
         return self
 
     def predict(self, x: np.ndarray, batch: int = 512) -> np.ndarray:
-        import torch
-
         if len(x) == 0:
             return np.zeros(0, dtype=int)
+        return self.probabilities(x, batch).argmax(axis=1)
+
+    def embed(self, x: np.ndarray, batch: int = 512) -> np.ndarray:
+        """Penultimate features (N, hidden): the pooled convolution output."""
+        import torch
+
+        trunk = self.net[:-2]  # drop Dropout and the Linear head
         out = []
         with torch.no_grad():
             for i in range(0, len(x), batch):
-                out.append(self.net(_inputs(x[i:i + batch], self.velocity_only)).argmax(dim=1).numpy())
-        return np.concatenate(out)
+                out.append(trunk(_inputs(x[i:i + batch], self.velocity_only)).numpy())
+        return np.concatenate(out) if out else np.zeros((0, self.net[-1].in_features))
+
+    def probabilities(self, x: np.ndarray, batch: int = 512) -> np.ndarray:
+        import torch
+
+        out = []
+        with torch.no_grad():
+            for i in range(0, len(x), batch):
+                out.append(torch.softmax(self.net(_inputs(x[i:i + batch], self.velocity_only)), dim=1).numpy())
+        return np.concatenate(out) if out else np.zeros((0, len(self.classes)))
 
     def accuracy(self, x: np.ndarray, y: np.ndarray) -> float:
         return float(np.mean(self.predict(x) == np.asarray(y))) if len(x) else float("nan")

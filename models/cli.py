@@ -64,12 +64,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
     p.set_defaults(func=run_restyle)
 
-    p = sub.add_parser("eval", help="evaluate the proposed model against the baseline on held-out files")
-    p.add_argument("--model", default=None, help="proposed model (default normal2exhausted)")
-    p.add_argument("--baseline", default="normal2exhausted-coherence", help="baseline model")
+    p = sub.add_parser("eval", help="judge a model on held-out files: style, action, FMD, jerk, foot slide, "
+                                     "timing, seams, against the input and the baselines")
+    p.add_argument("--model", default=None, help="model under test (default normal2exhausted)")
+    p.add_argument("--direction", choices=("a2b", "b2a"), default="a2b")
+    p.add_argument("--variant", action="append", default=[], metavar="NAME=PATH",
+                   help="another model to measure beside it (repeat)")
     p.add_argument("--out", type=Path, required=True, help="report folder (report.md, plots, metrics.json)")
     p.add_argument("--max-files", type=_positive_int, help="evaluate on at most N held-out files per style")
-    p.add_argument("--hop", type=_positive_int, default=20, help="hop of the blended restyle")
+    p.add_argument("--hop", type=_positive_int, help="hop of the restyle (default: serve's)")
     p.add_argument("--data", type=Path)
     p.add_argument("--cache", type=Path)
     p.add_argument("--threads", type=_positive_int)
@@ -121,10 +124,21 @@ def run_restyle(args) -> int:
 
 
 def run_eval(args) -> int:
+    from stylecast.motion.errors import UserError
+    from stylecast.motion.words import DEFAULT_HOP
+
     from .eval import evaluate
 
+    variants = {}
+    for item in args.variant:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise UserError(f"--variant {item!r} is not NAME=PATH; for example --variant k12=runs/k12/model.safetensors")
+        if name in variants:
+            raise UserError(f"--variant {name} is given twice; give each variant its own name")
+        variants[name] = path
     _threads(args.threads)
-    path = evaluate(args.model, args.baseline, args.out, max_files=args.max_files, hop=args.hop,
-                    data_dir=args.data, cache_dir=args.cache, seed=args.seed)
+    path = evaluate(args.model, args.out, variants, max_files=args.max_files, hop=args.hop or DEFAULT_HOP,
+                    data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction)
     print(f"wrote {path}")
     return 0

@@ -161,6 +161,8 @@ class FootLock:
         height = np.minimum(ball[:, :, 1] - lowest[:, None], ankle[:, :, 1] - lowest[:, None] - rest_ankle)
         prev = self._previous if self._previous is not None else (ankle[:1], ball[:1])
         speed = np.minimum(_speeds(np.concatenate([prev[0], ankle])), _speeds(np.concatenate([prev[1], ball])))
+        if self._previous is None:
+            speed[0] = np.inf  # a stream's first frame has no speed yet: not planted
         self._previous = (ankle[-1:], ball[-1:])
         plant = (height < s.plant_height) & (speed < s.plant_speed)
         release = (height > s.release_height) | (speed > s.release_speed)

@@ -44,6 +44,7 @@ import numpy as np
 from . import rotations as rot
 
 WORD_LENGTH = 60
+DEFAULT_HOP = 15  # frames between words when nobody says otherwise (serve, restyle, eval)
 
 
 def word_ends(num_frames: int, hop: int, word_length: int = WORD_LENGTH) -> list[int]:

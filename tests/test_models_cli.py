@@ -3,6 +3,7 @@ skipped when it is absent)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -94,12 +95,28 @@ def test_restyle_refuses_a_corrupt_checkpoint(tmp_path, capsys):
 @pytest.mark.slow
 def test_eval_writes_a_report(tiny_run, tmp_path):
     model = str(tiny_run / "model.safetensors")
-    assert main(["eval", "--model", model, "--baseline", model, "--out", str(tmp_path), "--max-files", "2",
+    assert main(["eval", "--model", model, "--variant", f"again={model}", "--out", str(tmp_path), "--max-files", "2",
                  "--threads", "1"]) == 0
     report = (tmp_path / "report.md").read_text()
-    for section in ("Table 3", "Seam ratio", "Style", "Content preservation", "Cycle reconstruction"):
+    for section in ("The judges", "Goals, model under test, live", "All variants, offline", "Per action, live",
+                    "What the windows were taken for", "Real motion: jerk", "Seams"):
         assert section in report
-    assert (tmp_path / "fig_bones_00-10.png").exists() and (tmp_path / "metrics.json").exists()
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    results = metrics["results"]
+    assert {"input", "posture", "again", "proposed"} <= set(results)
+    # the input scores its own values: the instrument's zero point
+    live_input = results["input"]["live"]["overall"]
+    assert live_input["jerk_ratio"]["all"] == 1.0 and live_input["slide_ratio"] == 1.0
+    assert live_input["timing_sync"] == pytest.approx(1.0) and live_input["judged_target"] < 0.5
+    # a one-epoch model is nearly the identity: far from the target on FMD, unlike real target windows
+    assert results["proposed"]["live"]["overall"]["fmd"] > metrics["fmd_floor"]
+    assert (tmp_path / "fig_hand_foot.png").exists()
+
+
+def test_eval_refuses_a_malformed_variant_in_one_sentence(tmp_path, capsys):
+    assert main(["eval", "--variant", "no-equals-sign", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "NAME=PATH" in err and err.count("\n") == 1
 
 
 class _Identity:

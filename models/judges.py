@@ -1,0 +1,69 @@
+"""The evaluation's judges: a 7-style and a 10-action classifier over world joint
+positions, trained on the training split of every dataset-2 style.
+
+What a judge sees (``judge_windows``): 60-frame windows of forward-kinematics joint
+positions in metres, relative to the hips at the window's centre frame and turned so the
+hips face +Z there. The root's path inside the window is kept (a judge may notice that a
+restyled walk still walks at the input's speed: the root is passed through, and that is
+an honest limit of the restyle), the performer's place and facing in the room are not.
+The classifier (``classifier.WordClassifier``) sees these positions and their velocities.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import data as D
+from . import representation as R
+from .classifier import WordClassifier
+from .metrics import world_positions
+
+WINDOW = 60
+JUDGE_HOP = 30  # windows overlap by half: more samples for the Frechet statistics
+
+
+def judge_windows(rotations: np.ndarray, roots: np.ndarray, skeleton, hop: int = JUDGE_HOP) -> np.ndarray:
+    """(T, J, 4) rotations and (T, 3) roots -> (N, 60, J, 3) judge inputs."""
+    positions = world_positions(rotations, roots, skeleton) / 100.0
+    starts = np.arange(0, len(positions) - WINDOW + 1, hop)
+    if len(starts) == 0:
+        return np.zeros((0, WINDOW, positions.shape[1], 3), np.float32)
+    idx = starts[:, None] + np.arange(WINDOW)
+    words = positions[idx]  # (N, 60, J, 3)
+    yaw = R.word_heading(np.asarray(rotations, np.float64)[idx])  # hips' facing at each centre frame
+    centre = words[:, WINDOW // 2 : WINDOW // 2 + 1, :1]  # (N, 1, 1, 3) hips at the centre frame
+    c, s = np.cos(-yaw), np.sin(-yaw)
+    rel = words - centre
+    x = c[:, None, None] * rel[..., 0] + s[:, None, None] * rel[..., 2]
+    z = -s[:, None, None] * rel[..., 0] + c[:, None, None] * rel[..., 2]
+    return np.stack([x, rel[..., 1], z], axis=-1).astype(np.float32)
+
+
+class Judges:
+    """Style and action classifiers trained on real windows of the training split."""
+
+    def __init__(self, styles: list[str], actions: list[str], seed: int = 0):
+        self.styles, self.actions = list(styles), list(actions)
+        self.seed = seed
+        self.style = self.action = None
+
+    def fit(self, motions: list, skeleton, log=print) -> "Judges":
+        x, ys, ya = [], [], []
+        for m in motions:
+            w = judge_windows(m.rotations, m.root_positions, skeleton)
+            x.append(w)
+            ys.append(np.full(len(w), self.styles.index(m.file.style)))
+            ya.append(np.full(len(w), self.actions.index(m.file.action)))
+        x, ys, ya = np.concatenate(x), np.concatenate(ys), np.concatenate(ya)
+        features = x.shape[2] * x.shape[3]
+        self.style = WordClassifier(self.styles, features, self.seed).fit(x, ys)
+        self.action = WordClassifier(self.actions, features, self.seed).fit(x, ya)
+        log(f"judges trained on {len(x)} real training windows of {len(self.styles)} styles")
+        return self
+
+
+def training_motions(files: list, styles: list[str], per_style: int | None, cache_dir=None) -> list:
+    chosen = []
+    for s in styles:
+        chosen += D.files_for_style(files, s, "train")[:per_style]
+    return D.load_motions(chosen, cache_dir)

@@ -1,0 +1,112 @@
+"""The Markdown report of ``stylecast eval`` (``report.md`` beside ``metrics.json``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+# The bar a shipped model must clear (issue "Restyled motion that holds up"), checked
+# on the live default setting and offline. (name, metric key, test, shown goal)
+GOALS = (
+    ("judged target style", "judged_target", lambda v, m: v >= 0.90, ">= 90 %"),
+    ("action kept", "action_kept", lambda v, m: v >= 0.93, ">= 93 %"),
+    ("jerk ratio (all joints)", "jerk_all", lambda v, m: v <= 1.10, "<= 1.10"),
+    ("planted-foot slide / input's", "slide_ratio", lambda v, m: v <= 1.5, "<= 1.5"),
+    ("timing sync", "timing_sync", lambda v, m: v >= 0.8, ">= 0.8"),
+    ("seam ratio / input's on the same grid", "seam_ratio_relative", lambda v, m: v <= 1.02, "<= 1.02"),
+    ("FMD / real-vs-real floor", "fmd_ratio", lambda v, m: v <= 2.0, "<= 2"),
+)
+
+
+def _pct(v) -> str:
+    return "n/a" if v is None or not np.isfinite(v) else f"{100 * v:.1f} %"
+
+
+def _num(v, digits: int = 3) -> str:
+    return "n/a" if v is None or not np.isfinite(v) else f"{v:.{digits}f}"
+
+
+def goal_values(overall: dict, fmd_floor: float) -> dict:
+    return {"judged_target": overall["judged_target"], "action_kept": overall["action_kept"],
+            "jerk_all": overall["jerk_ratio"]["all"], "slide_ratio": overall["slide_ratio"],
+            "timing_sync": overall["timing_sync"], "seam_ratio_relative": overall["seam_ratio_relative"],
+            "fmd_ratio": overall["fmd"] / fmd_floor if fmd_floor > 0 else float("nan")}
+
+
+def goals_met(overall: dict, fmd_floor: float) -> dict[str, bool]:
+    values = goal_values(overall, fmd_floor)
+    return {key: bool(np.isfinite(values[key]) and test(values[key], overall)) for _, key, test, _ in GOALS}
+
+
+def write_report(path: Path, m: dict, plots: list[str]) -> Path:
+    src, tgt, res = m["source"], m["target"], m["results"]
+    lines = [f"# stylecast evaluation: {src} -> {tgt}", "",
+             f"Model under test: `{m['model']}`. Held-out files (split by file, never trained on): "
+             + ", ".join(f"{s} {n}" for s, n in m["held_out_files"].items())
+             + f". Every {src} held-out clip is restyled by each variant through the stream code of `restyle` "
+             f"and `serve` (hop {m['hop']}, seam blender, foot lock). `live` = what `serve` sends at its defaults; "
+             "`offline` = what `restyle` writes.", "",
+             "## The judges", "",
+             "A 7-style and a 10-action classifier (1-D conv over world joint positions and velocities, in metres, "
+             "relative to the hips at each window's centre and facing +Z) trained on real training-split windows "
+             "of all styles; accuracy on real held-out windows:", "",
+             "| style | windows | judged as its style | action recognised |", "|---|---|---|---|"]
+    for s, j in m["judges"].items():
+        lines.append(f"| {s} | {j['windows']} | {_pct(j['style_accuracy'])} | {_pct(j['action_accuracy'])} |")
+    floor = m["fmd_floor"]
+    lines += ["", f"FMD floor (real {tgt} training windows vs real {tgt} held-out windows, style-classifier "
+              f"features): **{floor:.3f}**.", ""]
+    for setting in ("live", "offline"):
+        prop = res["proposed"][setting]["overall"]
+        met = goals_met(prop, floor)
+        values = goal_values(prop, floor)
+        lines += ["", f"## Goals, model under test, {setting}", "", "| measure | value | goal | met |", "|---|---|---|---|"]
+        for name, key, _, shown in GOALS:
+            v = values[key]
+            lines.append(f"| {name} | {_pct(v) if key in ('judged_target', 'action_kept') else _num(v)} | {shown} | "
+                         f"{'yes' if met[key] else '**no**'} |")
+        lines += ["", f"## All variants, {setting} (all actions)", "",
+                  "| variant | judged target | action kept | FMD | jerk all | jerk hands | jerk feet | slide cm/frame "
+                  "(ratio) | sync | seam (/ input's) |", "|---|---|---|---|---|---|---|---|---|---|"]
+        for name, r in res.items():
+            o = r[setting]["overall"]
+            jr = o["jerk_ratio"]
+            lines.append(f"| {name} | {_pct(o['judged_target'])} | {_pct(o['action_kept'])} | {_num(o['fmd'])} | "
+                         f"{_num(jr['all'], 2)} | {_num(jr['hands'], 2)} | {_num(jr['feet'], 2)} | "
+                         f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
+                         f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
+                         f"({_num(o['seam_ratio_relative'], 3)}) |")
+    lines += ["", "Variants: " + "; ".join(f"`{k}`: {v['note']}" for k, v in res.items()) + ".", "",
+              f"## What the windows were taken for (live)", "",
+              "| variant | " + " | ".join(next(iter(res.values()))["live"]["overall"]["judged_as"]) + " |",
+              "|---|" + "---|" * len(next(iter(res.values()))["live"]["overall"]["judged_as"])]
+    for name, r in res.items():
+        lines.append(f"| {name} | " + " | ".join(_pct(v) for v in r["live"]["overall"]["judged_as"].values()) + " |")
+    actions = list(next(iter(res.values()))["live"]["per_action"])
+    for title, key, fmt in (("judged target", "judged_target", _pct), ("action kept", "action_kept", _pct),
+                            ("jerk ratio, all joints", None, lambda v: _num(v, 2)),
+                            ("planted-foot slide ratio", "slide_ratio", lambda v: _num(v, 2)),
+                            ("timing sync", "timing_sync", lambda v: _num(v, 3))):
+        lines += ["", f"## Per action, live: {title}", "", "| variant | " + " | ".join(actions) + " |",
+                  "|---|" + "---|" * len(actions)]
+        for name, r in res.items():
+            cells = []
+            for a in actions:
+                o = r["live"]["per_action"][a]
+                cells.append(fmt(o["jerk_ratio"]["all"] if key is None else o[key]))
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += ["", f"## Real motion: jerk of real {tgt} clips over real {src} clips of the same action", "",
+              "| action | all | hands | feet |", "|---|---|---|---|"]
+    for a, g in m["real_target_jerk_ratio"].items():
+        lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |")
+    lines += ["", "## Seams", "",
+              f"Seam ratio of the model under test as plain 60-frame words (the paper's setting, no blend): "
+              f"{_num(m['plain_words_seam_ratio'])}; blended (above): "
+              f"{_num(res['proposed']['offline']['overall']['seam_ratio'])} offline, "
+              f"{_num(res['proposed']['live']['overall']['seam_ratio'])} live.", "",
+              "## Motion", ""]
+    lines += [f"![{p}]({p})" for p in plots]
+    lines += ["", f"Evaluation took {m['seconds']:.0f} s. Raw numbers: `metrics.json`.", ""]
+    path.write_text("\n".join(lines))
+    return path

@@ -1,0 +1,105 @@
+"""The evaluation's measures on synthetic motion with known answers: each must fail on
+the known-bad case it is there to catch (a jittered copy, a sliding foot, a frozen or
+re-timed motion, a different distribution), and score an identity restyle as the input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stylecast.models import metrics as M
+from stylecast.models.eval import _clip_measures, seam_ratio, switch_mask
+from stylecast.motion import rotations as rot
+from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
+
+J = len(HUMANOID_BONES)
+FOOT, TOES = HUMANOID_BONES.index("LeftFoot"), HUMANOID_BONES.index("LeftToes")
+
+
+def smooth_motion(frames: int = 240, seed: int = 0):
+    """Slow sinusoidal local rotations and a root walking along +Z: (rotations, roots)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames) / 60.0
+    angles = 20 * np.sin(2 * np.pi * rng.uniform(0.3, 1.2, (1, J, 3)) * t[:, None, None]
+                         + rng.uniform(0, 2 * np.pi, (1, J, 3)))
+    q = rot.canonical_hemisphere(rot.from_euler(angles, "ZXY"))
+    roots = np.stack([np.zeros_like(t), 90 + np.zeros_like(t), 80 * t], axis=1)
+    return q, roots
+
+
+def jittered(q: np.ndarray, degrees: float, seed: int = 1) -> np.ndarray:
+    noise = np.radians(degrees) * np.random.default_rng(seed).standard_normal((*q.shape[:-1], 3))
+    return rot.multiply(q, rot.exp_map(noise))
+
+
+def test_identity_restyle_scores_the_inputs_values():
+    q, roots = smooth_motion()
+    m = _clip_measures(q, q.copy(), roots, humanoid_skeleton_default())
+    g_in, g_out = M.group_means(m["jerk_in"]), M.group_means(m["jerk_out"])
+    assert all(g_out[g] == pytest.approx(g_in[g]) for g in g_in)
+    np.testing.assert_allclose(m["slide_out"], m["slide_in"])
+    assert m["sync"] == pytest.approx(1.0)
+
+
+def test_a_jittered_copy_raises_jerk_the_smoothed_one_does_not():
+    q, roots = smooth_motion()
+    sk = humanoid_skeleton_default()
+    p = M.world_positions(q, roots, sk)
+    shaky = M.world_positions(jittered(q, 1.0), roots, sk)
+    ratio = M.group_means(M.jerk(shaky))["all"] / M.group_means(M.jerk(p))["all"]
+    assert ratio > 3.0  # one degree of frame-to-frame noise is a lot of jerk
+    assert M.group_means(M.jerk(shaky))["hands"] > M.group_means(M.jerk(p))["hands"] * 3
+    # the same noise summed into a slow drift (a posture change) barely moves it
+    drift = rot.multiply(q, rot.exp_map(np.radians(10) * np.linspace(0, 1, len(q))[:, None, None] * np.ones(3)))
+    slow = M.group_means(M.jerk(M.world_positions(drift, roots, sk)))["all"] / M.group_means(M.jerk(p))["all"]
+    assert 0.8 < slow < 1.2
+
+
+def planted_foot_positions(frames: int = 120, slide_cm: float = 0.0) -> np.ndarray:
+    """Positions (T, J, 3): every joint walks past at 3 cm per frame except the left foot,
+    standing on the floor; with ``slide_cm`` it moves that far sideways per frame."""
+    p = np.full((frames, J, 3), 100.0)
+    p[:, :, 2] += 3.0 * np.arange(frames)[:, None]
+    p[:, FOOT] = [10.0, 8.0, 0.0]
+    p[:, TOES] = [10.0, 2.0, 10.0]
+    p[:, [FOOT, TOES], 0] += slide_cm * np.arange(frames)[:, None]
+    return p
+
+
+def test_a_sliding_foot_raises_the_slide_a_still_one_does_not():
+    still, sliding = planted_foot_positions(), planted_foot_positions(slide_cm=1.0)
+    masks = M.planted(still)
+    assert masks["left"].all()  # on the floor and still: planted every frame
+    assert M.slide_samples(still, masks).max() == 0.0
+    # the output slides 1 cm per frame where the input stood still
+    assert M.slide_samples(sliding, masks).mean() == pytest.approx(1.0)
+    # and the input's own sliding foot (faster than PLANT_SPEED) does not count as planted
+    assert not M.planted(planted_foot_positions(slide_cm=2 * M.PLANT_SPEED))["left"].any()
+
+
+def test_timing_sync_falls_for_a_retimed_or_frozen_output():
+    q, roots = smooth_motion(360)
+    sk = humanoid_skeleton_default()
+    p = M.world_positions(q, roots, sk)
+    late = M.world_positions(np.concatenate([np.repeat(q[:1], 30, axis=0), q[:-30]]), roots, sk)  # half a second late
+    assert M.timing_sync(p, p) == pytest.approx(1.0)
+    assert M.timing_sync(p, late) < 0.8
+    assert np.isnan(M.timing_sync(p, np.repeat(p[:1], len(p), axis=0)))  # frozen: no timing at all
+
+
+def test_frechet_distance_is_zero_for_one_set_and_the_squared_shift_for_a_moved_one():
+    x = np.random.default_rng(0).standard_normal((4000, 8))
+    assert M.frechet_distance(x, x) == pytest.approx(0.0, abs=1e-6)
+    shifted = x + np.array([3.0] + [0.0] * 7)
+    assert M.frechet_distance(shifted, x) == pytest.approx(9.0, rel=1e-3)
+    wider = x * 2.0  # same mean, covariance x4: tr(S + 4S - 2*2S) = tr(S) ~ 8
+    assert M.frechet_distance(wider, x) == pytest.approx(8.0, rel=0.1)
+
+
+def test_seam_ratio_sees_a_jump_at_each_word_boundary():
+    rng = np.random.default_rng(0)
+    d = [np.abs(rng.normal(1.0, 0.05, (600, J)))]
+    mask = [switch_mask(601, 60, live=True)]
+    assert seam_ratio(d, mask) == pytest.approx(1.0, abs=0.05)
+    jumped = [d[0] + 2.0 * mask[0][:, None]]
+    assert seam_ratio(jumped, mask) > 2.5
