@@ -39,6 +39,7 @@ from .skeleton import Skeleton
 
 LEGS = tuple(tuple(HUMANOID_BONES.index(f"{side}{b}") for b in ("UpperLeg", "LowerLeg", "Foot", "Toes"))
              for side in ("Left", "Right"))
+LEG_INDEX = np.array(LEGS)  # (2 sides, 4 bones): both legs are processed as one batch
 HIPS = HUMANOID_BONES.index("Hips")
 
 
@@ -62,21 +63,23 @@ def leg_chain(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray):
     joints (hip socket, knee, ankle, ball of the foot), world rotations (n, 2, 4, 4) of
     UpperLeg, LowerLeg, Foot and Toes, and the Hips' world rotation (n, 4)."""
     hips = rotations[:, HIPS]
-    pos = np.empty((len(roots), 2, 4, 3))
-    world = np.empty((len(roots), 2, 4, 4))
-    for side, chain in enumerate(LEGS):
-        parent_rot, parent_pos = hips, roots
-        for k, j in enumerate(chain):
-            pos[:, side, k] = parent_pos + rot.apply(parent_rot, offsets[j])
-            world[:, side, k] = parent_rot = rot.multiply(parent_rot, rotations[:, j])
-            parent_pos = pos[:, side, k]
+    n = len(roots)
+    pos = np.empty((n, 2, 4, 3))
+    world = np.empty((n, 2, 4, 4))
+    offs = offsets[LEG_INDEX]  # (2, 4, 3)
+    local = rotations[:, LEG_INDEX]  # (n, 2, 4, 4)
+    parent_rot = np.broadcast_to(hips[:, None], (n, 2, 4))
+    parent_pos = np.broadcast_to(roots[:, None], (n, 2, 3))
+    for k in range(4):
+        pos[:, :, k] = parent_pos = parent_pos + rot.apply(parent_rot, offs[:, k])
+        world[:, :, k] = parent_rot = rot.multiply(parent_rot, local[:, :, k])
     return pos, world, hips
 
 
 def _shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Vectorised smallest rotation turning unit vectors a onto b (..., 3) -> (..., 4).
     Leg corrections are far from half turns, where this form would lose its axis."""
-    q = np.concatenate([np.cross(a, b), 1.0 + np.sum(a * b, axis=-1, keepdims=True)], axis=-1)
+    q = np.concatenate([rot.cross(a, b), 1.0 + np.sum(a * b, axis=-1, keepdims=True)], axis=-1)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
@@ -91,28 +94,27 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     bend the knee towards ``knee_pole`` (n, 2, 3) and give the foot the world rotation
     ``foot_world`` (n, 2, 4); the hips are those of ``rotations``."""
     pos, world, hips = leg_chain(roots, rotations, offsets)
+    thigh = np.linalg.norm(offsets[LEG_INDEX[:, 1]], axis=-1)  # (2,) socket to knee
+    shin = np.linalg.norm(offsets[LEG_INDEX[:, 2]], axis=-1)  # knee to ankle
+    socket, knee = pos[:, :, 0], pos[:, :, 1]
+    to_target = ankle_target - socket
+    dist = np.clip(np.linalg.norm(to_target, axis=-1), np.abs(thigh - shin) + 1e-6, thigh + shin - 1e-6)
+    axis = _unit(to_target)
+    along = (thigh ** 2 - shin ** 2 + dist ** 2) / (2 * dist)  # law of cosines
+    height = np.sqrt(np.maximum(thigh ** 2 - along ** 2, 0.0))
+    pole = knee_pole - socket
+    bend = _unit(pole - np.sum(pole * axis, axis=-1, keepdims=True) * axis)
+    new_knee = socket + along[..., None] * axis + height[..., None] * bend
+    new_ankle = socket + dist[..., None] * axis
+    # Swing each bone onto its new direction from where it points now (keeps its twist).
+    upper_world = rot.multiply(_shortest_arc(_unit(knee - socket), _unit(new_knee - socket)), world[:, :, 0])
+    lower_now = rot.multiply(upper_world, rotations[:, LEG_INDEX[:, 1]])
+    shin_now = rot.apply(lower_now, offsets[LEG_INDEX[:, 2]])
+    lower_world = rot.multiply(_shortest_arc(_unit(shin_now), _unit(new_ankle - new_knee)), lower_now)
     out = np.empty((len(roots), 2, 3, 4))
-    for side, (_, lower, foot, _) in enumerate(LEGS):
-        l1, l2 = np.linalg.norm(offsets[lower]), np.linalg.norm(offsets[foot])
-        socket, knee, ankle = pos[:, side, 0], pos[:, side, 1], pos[:, side, 2]
-        to_target = ankle_target[:, side] - socket
-        dist = np.clip(np.linalg.norm(to_target, axis=-1), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
-        axis = _unit(to_target)
-        along = (l1 * l1 - l2 * l2 + dist * dist) / (2 * dist)  # law of cosines
-        height = np.sqrt(np.maximum(l1 * l1 - along * along, 0.0))
-        pole = knee_pole[:, side] - socket
-        bend = _unit(pole - np.sum(pole * axis, axis=-1, keepdims=True) * axis)
-        new_knee = socket + along[:, None] * axis + height[:, None] * bend
-        new_ankle = socket + dist[:, None] * axis
-        # Swing each bone onto its new direction from where it points now (keeps twist).
-        upper_world = rot.multiply(_shortest_arc(_unit(knee - socket), _unit(new_knee - socket)),
-                                   world[:, side, 0])
-        lower_now = rot.multiply(upper_world, rotations[:, lower])
-        shin_now = rot.apply(lower_now, offsets[foot])
-        lower_world = rot.multiply(_shortest_arc(_unit(shin_now), _unit(new_ankle - new_knee)), lower_now)
-        out[:, side, 0] = rot.multiply(rot.inverse(hips), upper_world)  # the legs hang off the Hips
-        out[:, side, 1] = rot.multiply(rot.inverse(upper_world), lower_world)
-        out[:, side, 2] = rot.multiply(rot.inverse(lower_world), foot_world[:, side])
+    out[:, :, 0] = rot.multiply(rot.inverse(hips)[:, None], upper_world)  # the legs hang off the Hips
+    out[:, :, 1] = rot.multiply(rot.inverse(upper_world), lower_world)
+    out[:, :, 2] = rot.multiply(rot.inverse(lower_world), foot_world)
     return out
 
 
@@ -208,11 +210,9 @@ class FootLock:
         solved = solve_legs(roots[rows], outputs[rows], self.offsets, pos_in[:, :, 2], pos_in[:, :, 1],
                             world_in[:, :, 2])
         result = outputs.copy()
-        for side, (upper, lower, foot, toes) in enumerate(LEGS):
-            weight = w[rows, side]
-            for k, bone in enumerate((upper, lower, foot)):
-                result[rows, bone] = rot.slerp(outputs[rows, bone], solved[:, side, k], weight)
-            result[rows, toes] = rot.slerp(outputs[rows, toes], inputs[rows, toes], weight)
+        target = np.concatenate([solved, inputs[rows][:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
+        weight = np.broadcast_to(w[rows][:, :, None], target.shape[:-1])
+        result[rows[:, None, None], LEG_INDEX[None]] = rot.slerp(outputs[rows][:, LEG_INDEX], target, weight)
         self.locked_frames += int(np.count_nonzero(w >= 1.0))
         return result
 

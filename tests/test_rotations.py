@@ -63,3 +63,13 @@ def test_swing_takes_direction_onto_target_and_handles_opposites():
     q = rot.swing(np.array([0, 1.0, 0]), np.array([0, -1.0, 0]), np.array([0, 0, 1.0]))
     assert np.allclose(rot.apply(q, np.array([0, 1.0, 0])), [0, -1, 0], atol=1e-9)
     assert np.allclose(rot.apply(q, np.array([0, 0, 1.0])), [0, 0, 1], atol=1e-9)  # turned about forward
+
+
+def test_apply_equals_scipy_for_random_rotations_and_broadcast_shapes():
+    rng = np.random.default_rng(3)
+    q = Rotation.random(200, random_state=4).as_quat().reshape(10, 20, 4)
+    v = rng.normal(size=(10, 20, 3))
+    expected = Rotation.from_quat(q.reshape(-1, 4)).apply(v.reshape(-1, 3)).reshape(10, 20, 3)
+    np.testing.assert_allclose(rot.apply(q, v), expected, atol=1e-12)
+    np.testing.assert_allclose(rot.apply(q, v[0, 0]), Rotation.from_quat(q.reshape(-1, 4)).apply(v[0, 0]).reshape(10, 20, 3),
+                               atol=1e-12)  # one vector, many rotations
