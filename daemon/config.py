@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from stylecast.motion.errors import UserError
+from stylecast.motion.words import DEFAULT_HOP
 
 from .control import DEFAULT_ALLOW, DEFAULT_CONTROL_PORT
 
@@ -32,7 +33,7 @@ class DaemonConfig:
     out: list[str] = field(default_factory=list)
     out_input: list[str] = field(default_factory=list)
     record: str = ""
-    hop: int = 15
+    hop: int = DEFAULT_HOP
     delay: int = 0  # frames; 0 = the hop (the minimum)
     decay: float = -1.0  # seam offset time constant in frames; -1 = the blender's default
     crossfade: float = 0.5  # seconds of every pass-through <-> restyled fade

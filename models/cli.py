@@ -54,8 +54,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None, help="checkpoint path or shipped name (default normal2exhausted)")
     p.add_argument("--direction", choices=("a2b", "b2a"), default="a2b")
     p.add_argument("--intensity", type=_unit, default=1.0, help="0 = input, 1 = fully restyled")
-    p.add_argument("--hop", type=_positive_int, default=15,
-                   help="frames between words (1..60; 60 = no overlap); default 15, as `serve`")
+    p.add_argument("--hop", type=_positive_int,
+                   help="frames between words (1..60; 60 = no overlap); default: as `serve`")
     p.add_argument("--fps", type=float, help="frame rate of the output (default: the input's)")
     p.add_argument("--live", action="store_true",
                    help="render as the live daemon does (start in pass-through and fade in, no mirrored "
@@ -116,8 +116,10 @@ def run_restyle(args) -> int:
     from .restyle import restyle_file
 
     _threads(args.threads)
+    from stylecast.motion.words import DEFAULT_HOP
+
     info = restyle_file(args.input, args.output, model=args.model, direction=args.direction,
-                        intensity=args.intensity, hop=args.hop, fps=args.fps, map_file=args.map, live=args.live)
+                        intensity=args.intensity, hop=args.hop or DEFAULT_HOP, fps=args.fps, map_file=args.map, live=args.live)
     print(f"wrote {args.output}: {info['joints']} joints, {info['frames']} frames at {info['fps']:g} fps "
           f"({info['model']}, {info['direction']}: {info['from']} -> {info['to']})")
     return 0

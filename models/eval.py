@@ -62,6 +62,7 @@ class Variant:
     name: str
     restyle_words: object  # (B, 60, J, 4) -> (B, 60, J, 4), or None for the input itself
     note: str
+    lock_feet: bool = True  # the product always locks; one row shows what the lock does
 
 
 # --- the paper's smoothness and the seams ----------------------------------------------------
@@ -121,6 +122,8 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
             out.append(Variant(name, r.restyle_words, note))
     for name, path in extra.items():
         out.append(Variant(name, Restyler.load(path, proposed.direction).restyle_words, f"`{path}`"))
+    out.append(Variant("proposed-unlocked", proposed.restyle_words, "the model under test without the foot lock",
+                       lock_feet=False))
     out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test)"))
     return out
 
@@ -220,8 +223,9 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
             for m in clips:
                 inp = m.rotations.astype(np.float64)
                 roots = m.root_positions.astype(np.float64)
+                lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
                 res = inp if variant.restyle_words is None else restyle_rotations(
-                    inp, variant.restyle_words, hop, live=setting == "live", roots=roots, skeleton=skeleton)
+                    inp, variant.restyle_words, hop, live=setting == "live", **lock)
                 per_clip.append(_clip_measures(inp, res, roots, skeleton))
                 w = judge_windows(res, roots, skeleton)
                 preds.append(judges.style.predict(w))

@@ -20,6 +20,7 @@ import numpy as np
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.errors import UserError
+from stylecast.motion.words import DEFAULT_HOP
 
 WORD_LENGTH = 60
 FPS = 60.0
@@ -56,7 +57,7 @@ def word_switches(num_frames: int, hop: int, crossfade_frames: int = CROSSFADE_F
     return serving[1:] != serving[:-1]
 
 
-def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = 15, intensity: float = 1.0,
+def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_HOP, intensity: float = 1.0,
                       crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
                       live: bool = False, roots: np.ndarray | None = None, skeleton=None) -> np.ndarray:
     """Humanoid rotations (T, J, 4) at 60 fps -> restyled (T, J, 4), any T >= 1.
@@ -97,7 +98,7 @@ def sample_at(rotations: np.ndarray, fps: float, times: np.ndarray) -> np.ndarra
     return rot.slerp(q0, q1, np.repeat(frac[:, None], J, axis=1))
 
 
-def restyle_clip(clip, restyler, hop: int = 15, intensity: float = 1.0, fps: float | None = None,
+def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0, fps: float | None = None,
                  user_map: dict | None = None, live: bool = False):
     """A source clip -> the restyled clip on the same skeleton (at ``fps`` or the input's)."""
     from stylecast.motion.humanoid import Retarget
@@ -120,7 +121,7 @@ def restyle_clip(clip, restyler, hop: int = 15, intensity: float = 1.0, fps: flo
 
 
 def restyle_file(input_path, output_path, model=None, direction: str = "a2b", intensity: float = 1.0,
-                 hop: int = 15, fps: float | None = None, map_file=None, restyler=None, live: bool = False) -> dict:
+                 hop: int = DEFAULT_HOP, fps: float | None = None, map_file=None, restyler=None, live: bool = False) -> dict:
     from stylecast.motion.bvh import read_bvh, write_bvh
     from stylecast.motion.humanoid import load_user_map
 
