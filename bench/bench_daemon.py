@@ -159,7 +159,7 @@ def table(title, header, rows):
 
 
 def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0):
-    from stylecast.daemon.clock import RealClock
+    from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
@@ -230,7 +230,7 @@ def bench_compute(model, motion, seconds=10.0):
     """Work per tick under a virtual clock (no waiting, no scheduler noise): the whole
     tick, the model included, done serially. A tick costing under 16.7 ms of one core is
     what real time needs, so this bounds capacity on an idle machine from the work alone."""
-    from stylecast.daemon.clock import FakeClock
+    from stylecast.motion.clock import FakeClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
@@ -286,7 +286,7 @@ def bench_cpu(model, motion, n=8, seconds=8.0):
         rows.append((label, f"{r['cpu'] / (n * r['wall']) * 1e3:.2f}", f"{r['cpu'] / r['wall'] * 100:.0f}%",
                      r["dropped"]))
     # The relay floor: feed the daemon's own packets (captured once) at n performers x 60 fps.
-    from stylecast.daemon.clock import FakeClock
+    from stylecast.motion.clock import FakeClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
@@ -349,7 +349,7 @@ def ratio(sums):
 
 
 def bench_seams(model):
-    from stylecast.daemon.clock import FakeClock
+    from stylecast.motion.clock import FakeClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
     from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion

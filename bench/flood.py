@@ -87,7 +87,7 @@ def run_flood(seconds: float = 20.0, rate: float = 50_000, performers: int = 8, 
               junk_to: str = "legit", junk_senders: int = 2, restyler: str = "standin", hop: int = 15,
               quiet: bool = False) -> dict:
     """Run one flood; return every figure (see the module docstring)."""
-    from stylecast.daemon.clock import RealClock
+    from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
     from stylecast.drivers.bvh_replay import ReplaySource

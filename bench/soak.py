@@ -131,7 +131,7 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
          hop: int = 15, log=print) -> dict:
     from tests.hardening_junk import bind_consecutive
 
-    from stylecast.daemon.clock import RealClock
+    from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
     from stylecast.daemon.restylers import load_restyler

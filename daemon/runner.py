@@ -13,7 +13,7 @@ import threading
 
 from stylecast.drivers.sources import open_source
 
-from .clock import RealClock
+from stylecast.motion.clock import RealClock
 from .config import DaemonConfig
 from .engine import Daemon
 from .restylers import load_restyler

@@ -49,13 +49,14 @@ class OutputFrame:
 
 
 class Session:
-    def __init__(self, index: int, source, settings: BlendSettings, num_bones: int):
+    def __init__(self, index: int, source, settings: BlendSettings, num_bones: int, phase: int | None = None):
         self.index = index
         self.source = source
         self.performer = source.performer
-        self.settings = settings
-        self.cutter = WordCutter(settings.hop, settings.word_length, settings.phase)
-        self.blender = SeamBlender(settings, num_bones)
+        self.settings = settings  # shared with the daemon and every session: never copied
+        self.phase = settings.phase if phase is None else phase
+        self.cutter = WordCutter(settings.hop, settings.word_length, self.phase)
+        self.blender = SeamBlender(settings, num_bones, phase=self.phase)
         self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
         self.frames_in = 0
         self.out_t: int | None = None  # next output frame index

@@ -23,10 +23,10 @@ from scipy.spatial.transform import Rotation
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip, forward_kinematics
+from stylecast.motion.clock import RealClock
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES
 
-from .serial_trackers import MonotonicClock
 from .trackers import (ALL_ROLES, TrackerPoses, TrackerRole, TrackerSample, TrackerStatus, nominal_mount,
                        roles_for_points)
 
@@ -226,7 +226,7 @@ class Emulator:
 
     def __init__(self, recording: TrackerRecording, clock=None):
         self.recording = recording
-        self.clock = clock or MonotonicClock()
+        self.clock = clock or RealClock()
         self.frames_sent = 0
 
     def run(self, sink, *, loop: bool = False, max_frames: int | None = None) -> int:

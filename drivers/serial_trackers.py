@@ -18,7 +18,6 @@ import logging
 import math
 import os
 import struct
-import time
 import urllib.parse
 import zlib
 from collections import Counter
@@ -27,6 +26,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from stylecast.motion.clock import RealClock
 from stylecast.motion.errors import UserError
 
 from .trackers import TrackerRole, TrackerSample, TrackerStatus
@@ -201,17 +201,6 @@ def _make_port(url: str):
                         f"pyserial URL such as loop://") from None
 
 
-class MonotonicClock:
-    """The real clock; tests inject an object with the same two methods."""
-
-    def now(self) -> float:
-        return time.monotonic()
-
-    def sleep(self, dt: float) -> None:
-        if dt > 0:
-            time.sleep(dt)
-
-
 @dataclass
 class LinkStats:
     opens: int = 0  # successful opens (the first one included)
@@ -228,7 +217,7 @@ class _Link:
     def __init__(self, url: str, clock=None, backoff_initial: float = 0.1, backoff_max: float = 5.0,
                  opener: Callable[[str], object] = _make_port):
         self.url = url
-        self.clock = clock or MonotonicClock()
+        self.clock = clock or RealClock()
         self.backoff_initial = backoff_initial
         self.backoff_max = backoff_max
         self.stats = LinkStats()

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
@@ -144,7 +144,7 @@ def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline
                     frame_taps=[lambda f: frames.setdefault(f.performer, []).append(f)], log_status=False)
     daemon.run()
     daemon.close()
-    assert [s.settings.phase for s in daemon.sessions] == [0] * 8 + [5, 5]
+    assert [s.phase for s in daemon.sessions] == [0] * 8 + [5, 5]
     assert daemon.worker.batches < daemon.worker.words
     for k, phase in ((0, 0), (9, 5)):
         live = np.stack([f.rotations for f in frames[f"p{k}"]])

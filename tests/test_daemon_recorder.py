@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler
@@ -72,7 +72,7 @@ def test_kill_9_while_recording_loses_at_most_a_second_and_repairs(tmp_path):
     script = textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(REPO / 'tests')!r})
-        from stylecast.daemon.clock import RealClock
+        from stylecast.motion.clock import RealClock
         from stylecast.daemon.config import DaemonConfig
         from stylecast.daemon.engine import Daemon
         from stylecast.daemon.restylers import StandInRestyler

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from pythonosc.osc_message_builder import OscMessageBuilder
 
-from stylecast.daemon.clock import RealClock
+from stylecast.motion.clock import RealClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler

@@ -269,7 +269,7 @@ def test_pty_to_daemon_to_vmc_out():
     """The whole live path: emulator -> pty -> the daemon's serial:// source (T-pose
     calibration, solver) -> the daemon (identity restyler) -> VMC out over loopback UDP ->
     a VMC receiver. The hips the receiver sees follow the emulated performer."""
-    from stylecast.daemon.clock import FakeClock as DaemonClock
+    from stylecast.motion.clock import FakeClock as DaemonClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
     from stylecast.daemon.restylers import IdentityRestyler

@@ -20,7 +20,7 @@ import sys
 
 import pytest
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig, build_config
 from stylecast.daemon.control import ControlServer
 from stylecast.daemon.engine import Daemon

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.daemon.clock import FakeClock, RealClock
+from stylecast.motion.clock import FakeClock, RealClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.inference import InferenceWorker
@@ -352,7 +352,7 @@ def test_kill_9_at_a_known_frame_loses_at_most_a_second_and_stylecast_repair_fix
     script = textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(REPO)!r})
-        from stylecast.daemon.clock import RealClock
+        from stylecast.motion.clock import RealClock
         from stylecast.daemon.config import DaemonConfig
         from stylecast.daemon.engine import Daemon
         from stylecast.daemon.restylers import IdentityRestyler

@@ -30,7 +30,7 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.control import ControlServer, parse_command
 from stylecast.daemon.engine import Daemon
