@@ -40,7 +40,7 @@ from .commands import apply_command
 from .config import FPS, DaemonConfig
 from .control import ControlServer
 from .inference import InferenceWorker
-from .output import (PerformerSinks, VmcOut, parse_outputs, performer_targets, recording_path)
+from .output import PerformerSinks, open_outputs, recording_path
 from .restylers import load_restyler, model_name, style_label, with_direction
 from .session import Session
 from .status import LatencyWindow, status_line, status_messages
@@ -108,8 +108,6 @@ class Daemon:
 
     # -- construction -----------------------------------------------------------------
     def _open(self, sources, tap, frame_taps) -> None:
-        outs, bundled_out = parse_outputs(self.config.out)
-        ins, bundled_in = parse_outputs(self.config.out_input)
         names = set()
         for k, source in enumerate(sources):
             if source.performer in names:
@@ -126,10 +124,8 @@ class Daemon:
             bundled = self.config.bundled
             self.sinks.append(PerformerSinks(
                 skeleton.offsets,
-                vmc=VmcOut(performer_targets(outs, k), bundled if bundled_out is None else bundled_out, tap)
-                if outs else None,
-                vmc_input=VmcOut(performer_targets(ins, k), bundled if bundled_in is None else bundled_in)
-                if ins else None,
+                outputs=open_outputs(self.config.out, k, bundled, tap),
+                inputs=open_outputs(self.config.out_input, k, bundled),
                 recorder=self._recorder(k, skeleton),
                 frame_taps=frame_taps))
         address = self.config.control_address()

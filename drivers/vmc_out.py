@@ -381,3 +381,39 @@ class VmcSender:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class VmcOut:
+    """One performer's VMC stream to one or more receivers: the daemon's ``vmc://`` sink.
+
+    A ``tap`` callable, when given, sees every frame's datagrams before they are sent
+    (tests capture the exact bytes for the determinism check)."""
+
+    def __init__(self, targets: list[tuple[str, int]], bundled: bool = True, tap=None):
+        self.sender = VmcSender(targets, bundled=bundled)
+        self.tap = tap
+
+    def send(self, root_position: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, time: float) -> None:
+        s = self.sender
+        try:
+            datagrams = s.encoder.encode(root_position, rotations, offsets, time)
+        except ValueError:
+            s.frames_rejected += 1  # non-finite pose: never put NaN on the wire
+            return
+        s.frames_sent += 1
+        if self.tap is not None:
+            self.tap(datagrams)
+        s.send_datagrams(datagrams)
+
+    def counters(self) -> dict:
+        return self.sender.counters()
+
+    def close(self) -> None:
+        self.sender.close()
+
+
+def open_sink(url, targets: list[tuple[str, int]], bundled: bool = True, tap=None) -> VmcOut:
+    """The sink factory registered for ``vmc://`` (see ``sinks.py``); ``?bundled=0|1``
+    overrides the daemon's --unbundled for this receiver."""
+    opts = url.take({"bundled": (bool, None)})
+    return VmcOut(targets, bundled if opts["bundled"] is None else opts["bundled"], tap)
