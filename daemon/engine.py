@@ -200,6 +200,9 @@ class Daemon:
         self.worker.submit(batch)
         vmc_time = self.ticks / FPS
         for session, sinks in zip(self.sessions, self.sinks):
+            if session.skeleton_changed:  # the performer's own proportions, from now on
+                session.skeleton_changed = False
+                sinks.set_offsets(session.skeleton.offsets)
             frame = session.render(drain=session.source.finished)
             if frame is None:
                 continue

@@ -76,6 +76,8 @@ class Session:
         self.words = 0
         self.words_failed = 0
         self.latency = LatencyWindow()
+        self.skeleton = getattr(source, "skeleton", None)
+        self.skeleton_changed = False
 
     # -- input side -------------------------------------------------------------------
     def ingest(self, now: float) -> list[tuple[int, np.ndarray]]:
@@ -88,10 +90,20 @@ class Session:
         words = []
         for frame in self.source.poll(now):
             words += self.push(frame)
+        self._check_skeleton()
         if self.source.finished and self._inputs and self.cutter.frames_seen < self.frames_in + self.settings.delay:
             _, arrival, root, rotations = self._inputs[-1]
             words += self.push(PoseFrame(self.performer, arrival, root, rotations), held=True)
         return words
+
+    def _check_skeleton(self) -> None:
+        # The source contract: ``source.skeleton`` is the performer's proportions as last
+        # learnt (a VMC sender's bone offsets, a tracker calibration); a new object is a
+        # change, which the daemon passes on to the sinks.
+        skeleton = getattr(self.source, "skeleton", None)
+        if skeleton is not None and skeleton is not self.skeleton:
+            self.skeleton = skeleton
+            self.skeleton_changed = True
 
     def push(self, frame: PoseFrame, held: bool = False) -> list[tuple[int, np.ndarray]]:
         t = self.cutter.frames_seen

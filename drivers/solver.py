@@ -118,7 +118,8 @@ class TrackerSolver:
 
 class SolvedTrackerSource(Source):
     """A daemon source (``drivers.sources.Source``) that solves tracker samples
-    into humanoid pose frames: ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=1``.
+    into humanoid pose frames: ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=tpose``,
+    or the trackers of a ``vmc://`` source.
 
     The first ``calibrate`` seconds of tracker frames are the T-pose calibration (the
     performer stands in a T-pose when the source starts); frames are solved from then on.
@@ -235,6 +236,15 @@ class SolvedTrackerSource(Source):
         self.skeleton = cal.skeleton
         self._calibration_frames = []
 
+    def calibrate(self) -> None:
+        """Calibrate again on the next ``calibrate_seconds`` of frames (the performer
+        stands in a T-pose): ``/stylecast/calibrate``. Until then nothing is solved and
+        the daemon holds the last pose; the skeleton changes when calibration ends."""
+        self.solver = None
+        self._calibration_frames = []
+        self._prev = None
+        self._next_tick = None
+
     @property
     def finished(self) -> bool:
         return False
@@ -267,14 +277,34 @@ def open_source(url, performer: str) -> SolvedTrackerSource:
     ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=1&blend=0.3``."""
     from .serial_trackers import DEFAULT_BAUD, SerialTrackerSource
 
-    opts = url.take({"baud": (int, DEFAULT_BAUD), "points": (int, 10), "calibrate": (float, 1.0),
-                     "blend": (float, DEFAULT_BLEND_TIME)})
+    opts = url.take({"baud": (int, DEFAULT_BAUD), **TRACKER_OPTIONS})
     device = (url.host + url.path) if url.host else url.path
     if not device:
         raise UserError(f"{url.text}: give a device, as in serial:///dev/ttyUSB0?baud=921600")
-    if not 0.1 <= opts["calibrate"] <= 60:
-        raise UserError(f"{url.text}: calibrate={opts['calibrate']} must be between 0.1 and 60 seconds")
+    trackers = SerialTrackerSource(f"serial://{device}?baud={opts['baud']}")
+    return solved_source(url, trackers, performer, opts)
+
+
+# The options every tracker source takes (serial:// and vmc:// with trackers), one spec.
+TRACKER_OPTIONS = {"points": (int, 10), "calibrate": (str, "tpose"), "blend": (float, DEFAULT_BLEND_TIME)}
+TPOSE_SECONDS = 1.0  # calibrate=tpose: the first second of frames, standing in a T-pose
+
+
+def calibration_seconds(url, raw: str) -> float:
+    """``calibrate=tpose`` (one second of T-pose) or ``calibrate=SECONDS`` of T-pose."""
+    if raw.strip().lower() == "tpose":
+        return TPOSE_SECONDS
+    try:
+        seconds = float(raw)
+    except ValueError:
+        seconds = float("nan")
+    if not 0.1 <= seconds <= 60:
+        raise UserError(f"{url.text}: calibrate={raw} must be tpose or a number of seconds between 0.1 and 60")
+    return seconds
+
+
+def solved_source(url, trackers, performer: str, opts: dict) -> "SolvedTrackerSource":
     if not 0.0 <= opts["blend"] <= 5:
         raise UserError(f"{url.text}: blend={opts['blend']} must be between 0 and 5 seconds")
-    trackers = SerialTrackerSource(f"serial://{device}?baud={opts['baud']}")
-    return SolvedTrackerSource(trackers, performer, opts["points"], opts["calibrate"], opts["blend"])
+    return SolvedTrackerSource(trackers, performer, opts["points"], calibration_seconds(url, opts["calibrate"]),
+                               opts["blend"])
