@@ -27,6 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", type=float, default=1.0, help="playback rate (default 1: real time)")
     p.add_argument("--rate", type=float, default=None, metavar="HZ",
                    help="tracker sample rate (default: the clip's frame rate; VIVE trackers report 90-250 Hz)")
+    p.add_argument("--tpose", type=float, default=0.0, metavar="S",
+                   help="stand S seconds in a T-pose before the clip, for calibrate=tpose (default 0)")
     p.add_argument("--loop", action="store_true", help="replay forever")
     p.add_argument("--frames", type=int, default=None, metavar="N", help="stop after N frames")
     p.set_defaults(func=run_emulate)
@@ -37,7 +39,7 @@ def run_emulate(args) -> int:
 
     from stylecast.motion.errors import UserError
 
-    from .emulator import Emulator, emulate_trackers, load_humanoid, open_sink
+    from .emulator import Emulator, emulate_trackers, load_humanoid, open_sink, with_tpose
 
     if not args.bvh.is_file():
         raise UserError(f"--bvh {args.bvh} does not exist; give the path of a .bvh or .bvh.gz file")
@@ -45,7 +47,7 @@ def run_emulate(args) -> int:
         raise UserError(f"--frames {args.frames} must be at least 1")
     if not 0.0 <= args.rot_noise <= 90.0:
         raise UserError(f"--rot-noise {args.rot_noise} is out of range; give degrees between 0 and 90")
-    motion = load_humanoid(args.bvh)
+    motion = with_tpose(load_humanoid(args.bvh), args.tpose)
     recording = emulate_trackers(motion, args.points, noise_mm=args.noise, rot_noise_deg=args.rot_noise,
                                  drop=args.drop, seed=args.seed, speed=args.speed, rate=args.rate)
     sink = open_sink(args.to)

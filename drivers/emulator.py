@@ -77,6 +77,20 @@ def load_humanoid(path: str | Path) -> Clip:
     return Retarget.for_clip(clip).to_humanoid(clip)
 
 
+def with_tpose(motion: Clip, seconds: float) -> Clip:
+    """``motion`` preceded by ``seconds`` of T-pose at its first root position: what a
+    performer does before a take so a T-pose calibration (``calibrate=tpose``) can run."""
+    if not 0.0 <= seconds <= 60.0:
+        raise UserError(f"--tpose {seconds} is out of range; give seconds between 0 and 60")
+    n = int(round(seconds * motion.fps))
+    if n == 0:
+        return motion
+    J = len(motion.skeleton)
+    return motion.replace(rotations=np.concatenate([np.tile(rot.IDENTITY, (n, J, 1)), motion.rotations]),
+                          root_positions=np.concatenate([np.tile(motion.root_positions[:1], (n, 1)),
+                                                         motion.root_positions]))
+
+
 def emulate_trackers(motion: Clip, points: int = 10, *, noise_mm: float = 0.0, rot_noise_deg: float = 0.0,
                      drop: float = 0.0, drop_burst: float = 6.0, mount_jitter_cm: float = 0.0,
                      mount_jitter_deg: float = 0.0, seed: int | None = 0, speed: float = 1.0,

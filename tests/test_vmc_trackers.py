@@ -14,10 +14,9 @@ from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler
 from stylecast.drivers.bvh_replay import humanoid_motion
-from stylecast.drivers.emulator import VmcTrackerSink, emulate_trackers
+from stylecast.drivers.emulator import VmcTrackerSink, emulate_trackers, with_tpose
 from stylecast.drivers.sources import open_source
 from stylecast.drivers.vmc_in import VmcReceiver
-from stylecast.motion import rotations as rot
 from stylecast.motion.bvh import read_bvh
 from stylecast.motion.clip import forward_kinematics, pose_world
 from stylecast.motion.clock import OUTPUT_FPS, FakeClock
@@ -35,13 +34,6 @@ def walk(seconds: float = 4.0):
     return motion.slice(0, int(seconds * OUTPUT_FPS))
 
 
-def with_tpose(motion):
-    n = TPOSE_FRAMES
-    return motion.replace(
-        rotations=np.concatenate([np.tile(rot.IDENTITY, (n, len(HUMANOID_BONES), 1)), motion.rotations]),
-        root_positions=np.concatenate([np.tile(motion.root_positions[:1], (n, 1)), motion.root_positions]))
-
-
 def performer(seconds: float = 4.0):
     """A taller-than-default performer (x1.06) walking: the humanoid's own bone layout,
     so a T-pose calibration can learn its proportions."""
@@ -51,7 +43,7 @@ def performer(seconds: float = 4.0):
 
 
 def run_trackers_through_daemon(points: int, motion, extra: str = ""):
-    rec = emulate_trackers(with_tpose(motion), points)
+    rec = emulate_trackers(with_tpose(motion, TPOSE_FRAMES / OUTPUT_FPS), points)
     out = VmcReceiver("127.0.0.1", 0)
     source = open_source(f"vmc://127.0.0.1:0?points={points}&calibrate=tpose{extra}", "p0")
     sink = VmcTrackerSink("vmc://127.0.0.1:%d" % source.receiver.address[1])
@@ -63,7 +55,12 @@ def run_trackers_through_daemon(points: int, motion, extra: str = ""):
         for i in range(len(rec) + 40):
             if i < len(rec):
                 sink.send(rec.samples(i))
-                time.sleep(0.002)  # let loopback deliver before the tick polls
+                # Let loopback deliver before the tick polls (a loaded machine can take a
+                # while): the fake clock must not run ahead of the real packets.
+                deadline = time.monotonic() + 2.0
+                while source.receiver.counters["frames"] <= i and time.monotonic() < deadline:
+                    time.sleep(0.0005)
+                time.sleep(0.0005)  # (the receiver thread counts a frame just before queueing it)
             daemon.step()
             daemon.clock.advance(1 / OUTPUT_FPS)
             frames += [f for f in out.poll(0.0) if f.pose is not None]
