@@ -4,7 +4,10 @@ The algorithm is ``motion.words`` (WordCutter + SeamBlender), the very code offl
 ``stylecast restyle`` runs through ``restyle_stream``; this module only adds what a live
 stream needs around it:
 
-* Frame indices count input frames in arrival order. Output frame t is rendered ``delay``
+* Rate and time: a source stamps frames in its own time base at its own rate; the
+  session's ``StreamResampler`` puts them on the 60 Hz output grid (slerp) and a fixed
+  offset maps source time onto the daemon clock.
+* Frame indices count (resampled) input frames in arrival order. Output frame t is rendered ``delay``
   frames after input frame t arrived (the blender's latency model), one frame per tick
   of the daemon's 60 Hz output clock.
 * Jitter: a tick that brings two input frames and one that brings none even out (the
@@ -29,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylecast.motion.clip import PoseFrame
+from stylecast.motion.clock import OUTPUT_FPS
+from stylecast.motion.resample import StreamResampler
 from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter
 
 from .status import LatencyWindow
@@ -78,6 +83,10 @@ class Session:
         self.latency = LatencyWindow()
         self.skeleton = getattr(source, "skeleton", None)
         self.skeleton_changed = False
+        # Sources run at their own rate and time base; the session puts every stream on
+        # the output rate (drivers never resample).
+        self.resampler = StreamResampler(OUTPUT_FPS)
+        self._clock_offset: float | None = None
 
     # -- input side -------------------------------------------------------------------
     def ingest(self, now: float) -> list[tuple[int, np.ndarray]]:
@@ -89,12 +98,22 @@ class Session:
         ``restyle_stream`` pads a clip's end."""
         words = []
         for frame in self.source.poll(now):
-            words += self.push(frame)
+            restarts = self.resampler.restarts
+            for grid_frame in self.resampler.feed(frame):
+                words += self.push(self._on_daemon_clock(grid_frame, now, restarts))
         self._check_skeleton()
         if self.source.finished and self._inputs and self.cutter.frames_seen < self.frames_in + self.settings.delay:
             _, arrival, root, rotations = self._inputs[-1]
             words += self.push(PoseFrame(self.performer, arrival, root, rotations), held=True)
         return words
+
+    def _on_daemon_clock(self, frame: PoseFrame, now: float, restarts: int) -> PoseFrame:
+        # Source time -> daemon time by a fixed offset taken when the stream (re)starts:
+        # the frame's arrival for the latency figures. Jitter and drift are the ring's job
+        # (MAX_LAG, LAG_PATIENCE), not the timestamps'.
+        if self._clock_offset is None or self.resampler.restarts != restarts:
+            self._clock_offset = now - frame.timestamp
+        return PoseFrame(self.performer, frame.timestamp + self._clock_offset, frame.root_position, frame.rotations)
 
     def _check_skeleton(self) -> None:
         # The source contract: ``source.skeleton`` is the performer's proportions as last

@@ -43,6 +43,7 @@ import numpy as np
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip, PoseFrame
+from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.errors import UserError
 from stylecast.motion.skeleton import Skeleton
 
@@ -112,7 +113,7 @@ class TrackerSolver:
         """A recording of tracker frames -> a humanoid Clip (frame rate from the timestamps)."""
         ts, P, Q, V = _as_arrays(frames)
         root, local = self.solve_batch(ts, P, Q, V)
-        fps = (len(ts) - 1) / (ts[-1] - ts[0]) if len(ts) > 1 and ts[-1] > ts[0] else 60.0
+        fps = (len(ts) - 1) / (ts[-1] - ts[0]) if len(ts) > 1 and ts[-1] > ts[0] else OUTPUT_FPS
         return Clip(self.skeleton, local, root, fps)
 
 
@@ -125,15 +126,10 @@ class SolvedTrackerSource(Source):
     performer stands in a T-pose when the source starts); frames are solved from then on.
     Tracker frames are grouped by device timestamp (``FrameAssembler``); a frame is
     complete when the next one starts or when no sample has come for ``flush_after``
-    seconds. Device time is mapped onto the daemon's clock with a fixed offset taken at
-    the first frame, and the solved poses are resampled onto a 60 Hz grid (the daemon's
-    rate, whatever the trackers' rate): each grid time between two solved frames gets
-    their interpolation (slerp), which costs at most one tracker frame of latency; across
-    a gap longer than ``max_gap`` the pose is not interpolated. Never raises from ``poll``.
+    seconds. Solved frames keep the trackers' device time and rate (the source
+    contract): the daemon's session maps them onto its clock and resamples them to 60 Hz.
+    Never raises from ``poll``.
     """
-
-    fps = 60.0
-    max_gap = 0.25
 
     def __init__(self, trackers, performer: str, points: int = 10, calibrate_seconds: float = 1.0,
                  blend_time: float = DEFAULT_BLEND_TIME, calibration: Calibration | None = None,
@@ -150,10 +146,7 @@ class SolvedTrackerSource(Source):
         self.solver = None if calibration is None else TrackerSolver(calibration, performer, blend_time)
         self.skeleton = None if calibration is None else calibration.skeleton
         self._calibration_frames: list[TrackerPoses] = []
-        self._offset: float | None = None
         self._last_arrival = -np.inf
-        self._prev: PoseFrame | None = None  # the last solved frame (daemon time)
-        self._next_tick: float | None = None  # the next 60 Hz grid time to emit
         self.frames_solved = 0
         self.solve_errors = 0
         self.calibration_failures = 0
@@ -175,10 +168,8 @@ class SolvedTrackerSource(Source):
             last = self.assembler.flush()
             if last is not None:
                 frames.append(last)
-        out, live = [], []
+        live = []
         for f in frames:
-            if self._offset is None:
-                self._offset = now - f.timestamp
             if self.solver is None:
                 self._calibrate(f)
                 continue
@@ -193,28 +184,8 @@ class SolvedTrackerSource(Source):
                 logging.getLogger("stylecast.drivers.solver").exception("%s: solver failed", self.performer)
             self.last_problem = f"solver failed: {exc}"
             solved = []
-        for pf in solved:
-            self.frames_solved += 1
-            out += self._resample(PoseFrame(self.performer, pf.timestamp + self._offset, pf.root_position,
-                                            pf.rotations))
-        return out
-
-    def _resample(self, cur: PoseFrame) -> list[PoseFrame]:
-        """60 Hz grid frames up to ``cur``'s time, interpolated from the previous solve."""
-        prev, self._prev = self._prev, cur
-        step = 1.0 / self.fps
-        if prev is None or self._next_tick is None or cur.timestamp - prev.timestamp > self.max_gap:
-            self._next_tick = cur.timestamp + step
-            return [cur]
-        out = []
-        span = cur.timestamp - prev.timestamp
-        while self._next_tick <= cur.timestamp + 1e-4:  # (device clocks tick in µs)
-            a = 1.0 if span <= 0 else (self._next_tick - prev.timestamp) / span
-            out.append(PoseFrame(self.performer, self._next_tick,
-                                 prev.root_position + a * (cur.root_position - prev.root_position),
-                                 rot.slerp(prev.rotations, cur.rotations, a)))
-            self._next_tick += step
-        return out
+        self.frames_solved += len(solved)
+        return solved
 
     def _calibrate(self, frame: TrackerPoses) -> None:
         import logging
@@ -242,8 +213,6 @@ class SolvedTrackerSource(Source):
         the daemon holds the last pose; the skeleton changes when calibration ends."""
         self.solver = None
         self._calibration_frames = []
-        self._prev = None
-        self._next_tick = None
 
     @property
     def finished(self) -> bool:

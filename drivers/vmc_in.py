@@ -475,8 +475,6 @@ class VmcSource:
     names a role, else (the headset) by address.
     """
 
-    fps = 60.0
-
     def __init__(self, bind: str, port: int, performer: str, input: str = "auto", solved=None,
                  role_map: dict | None = None) -> None:
         self.performer = performer
@@ -519,7 +517,12 @@ class VmcSource:
             for t in f.trackers:
                 self.trackers[(t.kind, t.serial, t.local)] = t
             if f.pose is not None and self.input != "trackers":
-                bones.append(f.pose)
+                # Stamped with the sender's own time (/VMC/Ext/T) when it sends one: the
+                # session resamples by it, so receive jitter does not become motion jitter.
+                if f.sender_time is not None:
+                    bones.append(PoseFrame(f.pose.performer, f.sender_time, f.pose.root_position, f.pose.rotations))
+                else:
+                    bones.append(f.pose)
                 self._learn_skeleton(f.offsets)
             if f.trackers and self.solved is not None:
                 samples = samples_from_vmc(f.trackers, f.sender_time if f.sender_time is not None else f.timestamp,

@@ -298,7 +298,7 @@ class ListTrackers:
         return out
 
 
-def test_source_calibrates_then_emits_60_hz_whatever_the_tracker_rate():
+def test_source_calibrates_then_emits_at_the_tracker_rate_which_the_session_resamples():
     motion = body_motion(frames=240, seed=12)
     tpose = motion.replace(rotations=np.tile(rot.IDENTITY, (240, len(HUMANOID_BONES), 1)))
     whole = motion.replace(rotations=np.concatenate([tpose.rotations[:70], motion.rotations]),
@@ -315,6 +315,14 @@ def test_source_calibrates_then_emits_60_hz_whatever_the_tracker_rate():
         frames += source.poll(now)
     frames += source.poll(now + 1.0)  # the line goes quiet: the last frame is flushed
     assert source.calibrated and source.skeleton is not None
+    # The source keeps the trackers' own time and rate (device time, 30 Hz) ...
+    assert np.allclose(np.diff([f.timestamp for f in frames]), 1 / 30)
+    assert len(frames) == len(rec) - 31
+    # ... and the daemon's session puts them on the 60 Hz grid.
+    from stylecast.motion.resample import StreamResampler
+
+    resampler = StreamResampler(60.0)
+    frames = [g for f in frames for g in resampler.feed(f)]
     ts = np.array([f.timestamp for f in frames])
     assert np.allclose(np.diff(ts), 1 / 60)
     assert len(frames) == pytest.approx(2 * (len(rec) - 31), abs=2)
