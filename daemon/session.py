@@ -159,7 +159,10 @@ class Session:
         if target < 0:
             return None
         if self.out_t is None:
-            self.out_t = target
+            # Show the stream from its first frame when it is still near: a source slower
+            # than the output clock (30 Hz) delivers resampled frames in pairs, and the
+            # pair that crosses the delay must not cost the first frame.
+            self.out_t = 0 if target <= MAX_LAG else target
         elif not drain:
             behind = target - self.out_t
             self._lag_ticks = self._lag_ticks + 1 if behind > 0 else 0
