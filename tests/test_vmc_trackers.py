@@ -162,3 +162,47 @@ def test_role_map_names_trackers_by_serial():
     assert vmc_tracker_role("tra", "LHR-BBBB", roles) is TrackerRole.WAIST
     assert vmc_tracker_role("hmd", "LHR-CCCC", roles) is TrackerRole.HMD  # the headset by its address
     assert vmc_tracker_role("tra", "LHR-CCCC", roles) is None
+
+
+def test_a_calibrated_serial_source_sends_the_performers_own_offsets():
+    """serial:// trackers (emulator -> pty -> the daemon's serial source, T-pose
+    calibration) -> VMC out: the output carries the calibrated proportions, and FK of the
+    output lands on the performer's joints."""
+    import os
+
+    from stylecast.drivers.serial_trackers import encode_packets
+
+    from .test_serial_trackers import _raw_master
+
+    motion = performer(3.0)
+    rec = emulate_trackers(with_tpose(motion, TPOSE_FRAMES / OUTPUT_FPS), 10)
+    master, slave = os.openpty()
+    out = VmcReceiver("127.0.0.1", 0)
+    daemon = None
+    try:
+        _raw_master(master)
+        source = open_source(f"serial://{os.ttyname(slave)}?points=10&calibrate=tpose", "p0")
+        cfg = DaemonConfig(hop=15, control="off", out=["vmc://127.0.0.1:%d" % out.address[1]])
+        daemon = Daemon(cfg, [source], IdentityRestyler(), FakeClock(), log_status=False)
+        daemon.start()
+        frames = []
+        for i in range(len(rec) + 40):
+            if i < len(rec):
+                os.write(master, encode_packets(rec.samples(i)))
+                time.sleep(0.002)
+            daemon.step()
+            daemon.clock.advance(1 / OUTPUT_FPS)
+            frames += [f for f in out.poll(0.0) if f.pose is not None]
+        for _ in range(20):
+            frames += [f for f in out.poll(0.02) if f.pose is not None]
+        skeleton = source.skeleton
+    finally:
+        if daemon is not None:
+            daemon.close()
+        out.close()
+        os.close(master)
+        os.close(slave)
+    assert skeleton is not None and np.allclose(frames[-1].offsets[1:], skeleton.offsets[1:], atol=1e-3)
+    err, _ = solved_error(motion, moving(frames))
+    print(f"\nserial 10 points: FK of the VMC output vs the performer's joints, mean {err.mean():.2f} cm")
+    assert err.mean() <= 1.0
