@@ -87,6 +87,7 @@ class Session:
         # the output rate (drivers never resample).
         self.resampler = StreamResampler(OUTPUT_FPS)
         self._clock_offset: float | None = None
+        self._burst = 0  # frames the last ingest brought
 
     # -- input side -------------------------------------------------------------------
     def ingest(self, now: float) -> list[tuple[int, np.ndarray]]:
@@ -97,10 +98,12 @@ class Session:
         final frames are cut from real motion plus a held pose, exactly as offline
         ``restyle_stream`` pads a clip's end."""
         words = []
+        before = self.cutter.frames_seen
         for frame in self.source.poll(now):
             restarts = self.resampler.restarts
             for grid_frame in self.resampler.feed(frame):
                 words += self.push(self._on_daemon_clock(grid_frame, now, restarts))
+        self._burst = self.cutter.frames_seen - before
         self._check_skeleton()
         if self.source.finished and self._inputs and self.cutter.frames_seen < self.frames_in + self.settings.delay:
             _, arrival, root, rotations = self._inputs[-1]
@@ -159,10 +162,14 @@ class Session:
         if target < 0:
             return None
         if self.out_t is None:
-            # Show the stream from its first frame when it is still near: a source slower
-            # than the output clock (30 Hz) delivers resampled frames in pairs, and the
-            # pair that crosses the delay must not cost the first frame.
-            self.out_t = 0 if target <= MAX_LAG else target
+            # A source slower than the output clock (30 Hz), or not a multiple of it
+            # (90 Hz), delivers resampled frames in bursts (two, then none). Start as far
+            # behind the newest frame as this tick's burst, so the output steps one frame
+            # per tick from the start instead of holding on the tick after the burst.
+            start = target - min(max(self._burst - 1, 0), MAX_LAG)
+            if start < 0:
+                return None
+            self.out_t = start
         elif not drain:
             behind = target - self.out_t
             self._lag_ticks = self._lag_ticks + 1 if behind > 0 else 0

@@ -35,15 +35,16 @@ def performer_walk(seconds: float = 3.0):
     return motion.slice(0, int(seconds * motion.fps) + 1)
 
 
-def stream_through_daemon(rate: float):
+def stream_through_daemon(rate: float, restyler=None, hop: int = DELAY):
     motion = performer_walk()
     sent = resample(motion, rate)  # what a sender running at `rate` sends
     out = VmcReceiver("127.0.0.1", 0)
     source = open_source("vmc://127.0.0.1:0?input=bones", "p0")
     sender = VmcSender([source.receiver.address])
     frames, received = [], []
-    cfg = DaemonConfig(hop=DELAY, control="off", out=["vmc://127.0.0.1:%d" % out.address[1]])
-    daemon = Daemon(cfg, [source], IdentityRestyler(), FakeClock(), frame_taps=[frames.append], log_status=False)
+    cfg = DaemonConfig(hop=hop, control="off", out=["vmc://127.0.0.1:%d" % out.address[1]])
+    daemon = Daemon(cfg, [source], restyler or IdentityRestyler(), FakeClock(), frame_taps=[frames.append],
+                    log_status=False)
     try:
         daemon.start()
         i = 0
@@ -65,12 +66,12 @@ def stream_through_daemon(rate: float):
         daemon.close()
         sender.close()
         out.close()
-    return motion, sent, frames, received
+    return motion, sent, frames, received, daemon
 
 
 @pytest.mark.parametrize("rate", [30.0, 90.0])
 def test_a_vmc_stream_at_any_rate_comes_out_at_60_hz_with_its_duration_and_proportions(rate):
-    motion, sent, frames, received = stream_through_daemon(rate)
+    motion, sent, frames, received, _ = stream_through_daemon(rate)
     # One output frame per tick, consecutive frame indices, no frame shown twice until
     # the sender stops (then the last one is held).
     indices = [f.index for f in frames]
@@ -121,3 +122,18 @@ def test_the_stream_resampler_keeps_time_and_restarts_after_a_gap():
     assert np.allclose([f.root_position[0] for f in out], 1.5 * np.arange(61))  # linear in time
     assert r.feed(frame(0.9, 0.0)) == [] and r.stale == 1  # an old frame is dropped
     assert len(r.feed(frame(5.0, 0.0))) == 1 and r.restarts == 1  # a pause re-anchors the grid
+
+
+@pytest.mark.parametrize("rate, hop", [(30.0, 10), (30.0, 15), (90.0, 10)])
+def test_slow_or_uneven_rates_leave_the_model_its_time(rate, hop):
+    """Resampled frames of a 30 or 90 Hz source arrive in bursts (two, then none); the
+    session trails by the burst, so with delay = hop no word is late and no frame is
+    shown twice (the daemon waits for every word under the fake clock)."""
+    from stylecast.daemon.restylers import StandInRestyler
+
+    _, _, frames, _, daemon = stream_through_daemon(rate, StandInRestyler(), hop)
+    s = daemon.sessions[0]
+    indices = [f.index for f in frames]
+    new = sorted(set(indices))
+    assert indices[:len(new)] == list(range(len(new)))
+    assert s.blender.late_frames == 0 and s.skipped == 0
