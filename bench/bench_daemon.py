@@ -38,7 +38,7 @@ from machine import describe  # bench/machine.py (scripts run from bench/)
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "bandai"
 CHECKPOINT = REPO / "models" / "checkpoints" / "normal2exhausted.safetensors"
-FPS = 60.0
+from stylecast.motion.clock import OUTPUT_FPS as FPS  # noqa: E402 (the one definition)
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -58,9 +58,12 @@ def base_motion():
     from stylecast.drivers.bvh_replay import humanoid_motion
     from stylecast.motion.bvh import read_bvh
 
+    from stylecast.motion.resample import resample
+
     walk = DATA / "dataset-2" / "data" / "dataset-2_walk_normal_001.bvh.gz"
     if walk.exists():
-        return humanoid_motion(read_bvh(walk))
+        # At the output rate, so one replayed frame is one stream frame (indexed_source).
+        return resample(humanoid_motion(read_bvh(walk)), FPS)
     sys.path.insert(0, str(REPO))
     from tests.test_daemon import walk_clip
 
@@ -389,9 +392,10 @@ def bench_seams(model):
 
 
 def ReplaySourceRotations(motion):  # noqa: N802 (reads like the source it stands for)
-    from stylecast.drivers.bvh_replay import ReplaySource
+    """The rotations the daemon's sessions see: the motion on the 60 Hz output grid."""
+    from stylecast.motion.resample import resample
 
-    return ReplaySource(motion, "x").rotations
+    return resample(motion, FPS).rotations
 
 
 def main(argv):

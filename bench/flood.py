@@ -73,7 +73,10 @@ def walk_stream():
         from tests.test_daemon import walk_clip
 
         motion, name = walk_clip(600), "synthetic walk"
-    stream = ReplaySource(motion, "x", loop=True)
+    from stylecast.motion.clock import OUTPUT_FPS
+    from stylecast.motion.resample import resample
+
+    stream = ReplaySource(resample(motion, OUTPUT_FPS), "x", loop=True)  # the sessions' 60 Hz view
     return motion, stream.rotations, stream.root_positions, name
 
 

@@ -41,7 +41,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 DATA = REPO.parent / "shared" / "data" / "bandai"
 CHECKPOINT = REPO / "models" / "checkpoints" / "normal2exhausted.safetensors"
-FPS = 60.0
+from stylecast.motion.clock import OUTPUT_FPS as FPS  # noqa: E402 (the one definition)
 
 
 def proc_status() -> dict:
