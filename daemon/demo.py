@@ -94,6 +94,7 @@ def open_viewer(input_port: int | None) -> subprocess.Popen | None:
 
 def run_demo(args, config: DaemonConfig) -> int:
     from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.drivers.urls import parse_url
     from stylecast.motion.bvh import read_bvh
 
     from .runner import run_daemon
@@ -109,7 +110,7 @@ def run_demo(args, config: DaemonConfig) -> int:
                           loop=True, speed=args.speed)
     print(f"stylecast demo: replaying {clip_path} (looping) -> {', '.join(config.out)}; "
           f"Ctrl-C to stop", file=sys.stderr)
-    input_port = int(config.out_input[0].rsplit(":", 1)[1]) if config.out_input else None
+    input_port = parse_url(config.out_input[0]).port if config.out_input else None
     viewer = open_viewer(input_port) if args.view else None
     try:
         return run_daemon(config, restyler=restyler, sources=[source])

@@ -218,12 +218,15 @@ class _VmcTracker:
 
 
 def open_sink(url: str, clock=None):
-    """``serial://...`` or any pyserial URL -> SerialTrackerSink; ``vmc://HOST:PORT`` -> VmcTrackerSink."""
+    """``vmc://HOST:PORT`` -> VmcTrackerSink; ``serial://...``, any other pyserial URL or a
+    device path -> SerialTrackerSink (pyserial's own schemes are pyserial's to parse)."""
+    from .urls import parse_url
+
     text = str(url).strip()
-    if text.lower().startswith("vmc://"):
-        return VmcTrackerSink(text)
     if "://" not in text and not text.startswith("/"):
         raise UserError(f"--to {text!r} is not an output; give serial:///dev/pts/N?baud=921600 or vmc://HOST:PORT")
+    if "://" in text and parse_url(text).scheme == "vmc":
+        return VmcTrackerSink(text)
     from .serial_trackers import SerialTrackerSink
 
     sink = SerialTrackerSink(text, clock=clock)

@@ -244,13 +244,10 @@ class SolvedTrackerSource(Source):
 def open_source(url, performer: str) -> SolvedTrackerSource:
     """The daemon's ``serial://`` factory (``drivers.sources``):
     ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=1&blend=0.3``."""
-    from .serial_trackers import DEFAULT_BAUD, SerialTrackerSource
+    from .serial_trackers import DEFAULT_BAUD, SerialTrackerSource, serial_device
 
     opts = url.take({"baud": (int, DEFAULT_BAUD), **TRACKER_OPTIONS})
-    device = (url.host + url.path) if url.host else url.path
-    if not device:
-        raise UserError(f"{url.text}: give a device, as in serial:///dev/ttyUSB0?baud=921600")
-    trackers = SerialTrackerSource(f"serial://{device}?baud={opts['baud']}")
+    trackers = SerialTrackerSource(f"serial://{serial_device(url)}?baud={opts['baud']}")
     return solved_source(url, trackers, performer, opts)
 
 

@@ -75,7 +75,8 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.unity import (position_from_unity, position_to_unity, rotation_from_unity)
 
-from .osc_packets import check_port, decode, parse_vmc_url
+from .osc_packets import check_port, decode
+from .urls import parse_vmc_url
 
 if TYPE_CHECKING:
     from .urls import EndpointUrl

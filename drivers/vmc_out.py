@@ -50,7 +50,8 @@ from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.unity import position_to_unity, rotation_to_unity
 
 from .osc_packets import (DEFAULT_MAX_DATAGRAM, IMMEDIATE, check_port, encode_message,
-                          group_for_bundles, osc_string, pack_datagrams, parse_vmc_url)
+                          group_for_bundles, osc_string, pack_datagrams)
+from .urls import parse_vmc_url
 
 ROOT_ADDRESS = "/VMC/Ext/Root/Pos"
 BONE_ADDRESS = "/VMC/Ext/Bone/Pos"
