@@ -55,7 +55,7 @@ def restyler():
 
 def base_motion():
     """A Bandai walk as humanoid motion, or a synthetic one if the data is absent."""
-    from stylecast.drivers.bvh_replay import humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import humanoid_motion
     from stylecast.motion.bvh import read_bvh
 
     from stylecast.motion.resample import resample
@@ -72,7 +72,7 @@ def base_motion():
 
 def indexed_source(motion, name):
     """A looping replay whose hips x position (cm) is 10 x the stream frame index."""
-    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
     from stylecast.motion.clip import PoseFrame
 
     class Indexed(ReplaySource):
@@ -355,7 +355,7 @@ def bench_seams(model):
     from stylecast.motion.clock import FakeClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
-    from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource, humanoid_motion
     from stylecast.motion.bvh import read_bvh
 
     rows, actions, pooled = [], [], {}

@@ -63,7 +63,7 @@ class CountingHandler(logging.Handler):
 
 def walk_stream():
     """A humanoid walk as 60 fps arrays (Bandai if present, else synthetic)."""
-    from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource, humanoid_motion
     from stylecast.motion.bvh import read_bvh
 
     walk = DATA / "dataset-2" / "data" / "dataset-2_walk_normal_001.bvh.gz"
@@ -93,7 +93,7 @@ def run_flood(seconds: float = 20.0, rate: float = 50_000, performers: int = 8, 
     from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
-    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
     from stylecast.drivers.sources import open_source
     from stylecast.motion.humanoid import humanoid_skeleton_default
 

@@ -78,7 +78,7 @@ def soak_receiver(socks, duration, ready, results) -> None:
     """Receive VMC; keep (T, arrival - T) per frame per port; report at the end."""
     import select
 
-    from stylecast.drivers.vmc_in import VmcParser
+    from stylecast.drivers.vmc.vmc_in import VmcParser
 
     ports = [s.getsockname()[1] for s in socks]
     parsers = [VmcParser(f"out{p}") for p in ports]

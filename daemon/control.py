@@ -7,7 +7,7 @@ Who may talk: UDP is unauthenticated, so the port binds to 127.0.0.1 unless told
 otherwise and accepts datagrams only from an allow-list of source networks (default
 loopback). A refused sender is logged once (per address, bounded) and counted; so is
 every malformed packet, by reason, never line by line: a flood must not become a log
-flood. Decoding uses the strict, never-raising decoder of ``drivers.osc_packets``.
+flood. Decoding uses the strict, never-raising decoder of ``drivers.vmc.osc_packets``.
 
 This thread only receives, checks and queues; the output loop applies the commands at
 the start of its next tick, so a change takes effect on a frame boundary and every
@@ -22,7 +22,7 @@ import socket
 import threading
 from collections import Counter, deque
 
-from stylecast.drivers.osc_packets import decode, encode_message, pack_datagrams
+from stylecast.drivers.vmc.osc_packets import decode, encode_message, pack_datagrams
 from stylecast.motion.errors import UserError
 
 from .commands import parse_command  # noqa: F401  (re-exported: tests and fuzzers use it here)

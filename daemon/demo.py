@@ -93,7 +93,7 @@ def open_viewer(input_port: int | None) -> subprocess.Popen | None:
 
 
 def run_demo(args, config: DaemonConfig) -> int:
-    from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource, humanoid_motion
     from stylecast.drivers.urls import parse_url
     from stylecast.motion.bvh import read_bvh
 

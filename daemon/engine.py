@@ -135,7 +135,7 @@ class Daemon:
     def _recorder(self, k, skeleton):
         if not self.config.record:
             return None
-        from stylecast.drivers.bvh_recorder import BvhRecorder
+        from stylecast.drivers.bvh.bvh_recorder import BvhRecorder
 
         return BvhRecorder(recording_path(self.config.record, k), skeleton, FPS)
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stylecast.drivers.bvh_recorder import BvhRecorder
+from stylecast.drivers.bvh.bvh_recorder import BvhRecorder
 from stylecast.drivers.sinks import check_sink_scheme, default_port, open_sink
 from stylecast.drivers.urls import parse_url
 from stylecast.motion.errors import UserError
@@ -75,7 +75,7 @@ class PerformerSinks:
     @property
     def vmc(self):
         """The first restyled VMC sink (benches and tests read its counters)."""
-        from stylecast.drivers.vmc_out import VmcOut
+        from stylecast.drivers.vmc.vmc_out import VmcOut
 
         return next((o for o in self.outputs if isinstance(o, VmcOut)), None)
 

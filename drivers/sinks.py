@@ -15,12 +15,12 @@ import importlib
 
 from stylecast.motion.errors import UserError
 
-from .urls import EndpointUrl
+from stylecast.drivers.urls import EndpointUrl
 
 # scheme -> (module, factory, default port or None when the port must be given)
 SINK_SCHEMES: dict[str, tuple[str, str, int | None]] = {
-    "vmc": ("stylecast.drivers.vmc_out", "open_sink", None),
-    "vrchat": ("stylecast.drivers.vrchat_out", "open_sink", 9000),
+    "vmc": ("stylecast.drivers.vmc.vmc_out", "open_sink", None),
+    "vrchat": ("stylecast.drivers.vrchat.vrchat_out", "open_sink", 9000),
 }
 
 

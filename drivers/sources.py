@@ -33,7 +33,7 @@ from stylecast.motion.clip import PoseFrame
 from stylecast.motion.errors import UserError
 from stylecast.motion.skeleton import Skeleton
 
-from .urls import EndpointUrl, parse_url
+from stylecast.drivers.urls import EndpointUrl, parse_url
 
 
 class Source:
@@ -63,11 +63,11 @@ class Source:
 
 # scheme -> (module, function, what the user should know when it is missing)
 SOURCE_SCHEMES: dict[str, tuple[str, str]] = {
-    "bvh": ("stylecast.drivers.bvh_replay", "open_source"),
+    "bvh": ("stylecast.drivers.bvh.bvh_replay", "open_source"),
     # Live drivers written elsewhere (VMC receiver, serial trackers + solver): the daemon
     # only needs a factory with the signature above in these modules.
-    "vmc": ("stylecast.drivers.vmc_in", "open_source"),
-    "serial": ("stylecast.drivers.solver", "open_source"),
+    "vmc": ("stylecast.drivers.vmc.vmc_in", "open_source"),
+    "serial": ("stylecast.drivers.serial.serial_trackers", "open_source"),
 }
 
 

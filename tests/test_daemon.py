@@ -12,7 +12,7 @@ from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
@@ -101,7 +101,7 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root):
     """The real path end to end: a Bandai BVH replayed by the daemon (bvh source: read,
     retarget, resample to 60 fps) against `stylecast restyle --live` of the same file, in
     humanoid space at 60 fps (what `restyle` then writes back onto the source rig)."""
-    from stylecast.drivers.bvh_replay import humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import humanoid_motion
     from stylecast.models.restyler import Restyler
     from stylecast.motion.bvh import read_bvh
     from stylecast.motion.resample import resample

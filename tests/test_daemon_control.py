@@ -15,7 +15,7 @@ from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.control import ControlServer
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion import rotations as rot
 
 from .test_daemon import walk_clip

@@ -17,8 +17,8 @@ from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler
-from stylecast.drivers.bvh_recorder import BvhRecorder, repair_bvh
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_recorder import BvhRecorder, repair_bvh
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
@@ -76,7 +76,7 @@ def test_kill_9_while_recording_loses_at_most_a_second_and_repairs(tmp_path):
         from stylecast.daemon.config import DaemonConfig
         from stylecast.daemon.engine import Daemon
         from stylecast.daemon.restylers import StandInRestyler
-        from stylecast.drivers.bvh_replay import ReplaySource
+        from stylecast.drivers.bvh.bvh_replay import ReplaySource
         from tests.test_daemon import walk_clip
         d = Daemon(DaemonConfig(hop=15, control="off", record={str(path)!r}),
                    [ReplaySource(walk_clip(120), "p0", loop=True)], StandInRestyler(), RealClock(),

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from stylecast.drivers.osc_packets import decode
+from stylecast.drivers.vmc.osc_packets import decode
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -37,10 +37,10 @@ from stylecast.daemon.engine import Daemon
 from stylecast.daemon.inference import InferenceWorker
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.daemon.status import status_line, status_messages
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.drivers.sources import open_source
-from stylecast.drivers.vmc_in import VmcParser
-from stylecast.drivers.vmc_out import encode_frame
+from stylecast.drivers.vmc.vmc_in import VmcParser
+from stylecast.drivers.vmc.vmc_out import encode_frame
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
@@ -356,7 +356,7 @@ def test_kill_9_at_a_known_frame_loses_at_most_a_second_and_stylecast_repair_fix
         from stylecast.daemon.config import DaemonConfig
         from stylecast.daemon.engine import Daemon
         from stylecast.daemon.restylers import IdentityRestyler
-        from stylecast.drivers.bvh_replay import ReplaySource
+        from stylecast.drivers.bvh.bvh_replay import ReplaySource
         from tests.test_daemon import walk_clip
         count = [0]
         def tap(frame):

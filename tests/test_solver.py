@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from stylecast.drivers import solver as S
-from stylecast.drivers.emulator import emulate_trackers
-from stylecast.drivers.solver import TrackerSolver, calibrate_known_pose, calibrate_tpose
-from stylecast.drivers.trackers import TrackerRole
+from stylecast.drivers.trackers import solver as S
+from stylecast.drivers.trackers.emulator import emulate_trackers
+from stylecast.drivers.trackers.solver import TrackerSolver, calibrate_known_pose, calibrate_tpose
+from stylecast.drivers.trackers.trackers import TrackerRole
 from stylecast.motion import Clip, forward_kinematics
 from stylecast.motion import rotations as rot
 from stylecast.motion.errors import UserError
@@ -255,7 +255,7 @@ BANDAI_CLIPS = (  # dataset-2 clips: never used while tuning the solver (dataset
 
 @pytest.fixture(scope="module")
 def bandai_motions(bandai_root):
-    from stylecast.drivers.emulator import load_humanoid
+    from stylecast.drivers.trackers.emulator import load_humanoid
 
     out = [load_humanoid(bandai_root / rel) for rel in BANDAI_CLIPS if (bandai_root / rel).is_file()]
     if not out:

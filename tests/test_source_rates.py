@@ -13,10 +13,10 @@ from stylecast.daemon.clips import bundled_clip
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler
-from stylecast.drivers.bvh_replay import humanoid_motion
+from stylecast.drivers.bvh.bvh_replay import humanoid_motion
 from stylecast.drivers.sources import open_source
-from stylecast.drivers.vmc_in import VmcReceiver
-from stylecast.drivers.vmc_out import VmcSender
+from stylecast.drivers.vmc.vmc_in import VmcReceiver
+from stylecast.drivers.vmc.vmc_out import VmcSender
 from stylecast.motion import rotations as rot
 from stylecast.motion.bvh import read_bvh
 from stylecast.motion.clip import forward_kinematics, pose_world

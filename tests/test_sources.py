@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.drivers.sources import open_source
 from stylecast.drivers.urls import parse_url
 from stylecast.motion.errors import UserError

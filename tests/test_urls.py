@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import pytest
 
-from stylecast.drivers.serial_trackers import parse_serial_url
+from stylecast.drivers.serial.serial_trackers import parse_serial_url
 from stylecast.drivers.sinks import SINK_SCHEMES, open_sink
 from stylecast.drivers.sources import SOURCE_SCHEMES, open_source
 from stylecast.drivers.urls import parse_url, parse_vmc_url
-from stylecast.drivers.vmc_in import VmcReceiver
-from stylecast.drivers.vmc_out import VmcSender
+from stylecast.drivers.vmc.vmc_in import VmcReceiver
+from stylecast.drivers.vmc.vmc_out import VmcSender
 from stylecast.motion.errors import UserError
 
 

@@ -13,10 +13,11 @@ from stylecast.daemon.clips import bundled_clip
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler
-from stylecast.drivers.bvh_replay import humanoid_motion
-from stylecast.drivers.emulator import VmcTrackerSink, emulate_trackers, with_tpose
+from stylecast.drivers.bvh.bvh_replay import humanoid_motion
+from stylecast.drivers.trackers.emulator import emulate_trackers, with_tpose
 from stylecast.drivers.sources import open_source
-from stylecast.drivers.vmc_in import VmcReceiver
+from stylecast.drivers.vmc.vmc_in import VmcReceiver
+from stylecast.drivers.vmc.vmc_out import VmcTrackerSink
 from stylecast.motion.bvh import read_bvh
 from stylecast.motion.clip import forward_kinematics, pose_world
 from stylecast.motion.clock import OUTPUT_FPS, FakeClock
@@ -155,7 +156,7 @@ def test_bad_tracker_options_are_one_sentence(url, needle):
 
 
 def test_role_map_names_trackers_by_serial():
-    from stylecast.drivers.trackers import TrackerRole, parse_role_map, vmc_tracker_role
+    from stylecast.drivers.trackers.trackers import TrackerRole, parse_role_map, vmc_tracker_role
 
     roles = parse_role_map("u", "LHR-AAAA:left-foot,LHR-BBBB:waist")
     assert vmc_tracker_role("tra", "LHR-AAAA", roles) is TrackerRole.LEFT_FOOT
@@ -170,7 +171,7 @@ def test_a_calibrated_serial_source_sends_the_performers_own_offsets():
     output lands on the performer's joints."""
     import os
 
-    from stylecast.drivers.serial_trackers import encode_packets
+    from stylecast.drivers.serial.serial_trackers import encode_packets
 
     from .test_serial_trackers import _raw_master
 

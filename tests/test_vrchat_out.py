@@ -11,7 +11,7 @@ from pythonosc.osc_message import OscMessage
 from scipy.spatial.transform import Rotation
 
 from stylecast.drivers.urls import parse_url
-from stylecast.drivers.vrchat_out import TRACKERS, open_sink
+from stylecast.drivers.vrchat.vrchat_out import TRACKERS, open_sink
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.errors import UserError
@@ -108,7 +108,7 @@ def test_the_daemon_sends_trackers_beside_vmc(receiver):
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
     from stylecast.daemon.restylers import IdentityRestyler
-    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
     from stylecast.motion.clock import FakeClock
 
     from .test_daemon import walk_clip

@@ -28,7 +28,7 @@ import numpy as np
 from stylecast.motion.clock import RealClock
 from stylecast.motion.errors import UserError
 
-from .trackers import TrackerRole, TrackerSample, TrackerStatus
+from stylecast.drivers.trackers.trackers import TrackerRole, TrackerSample, TrackerStatus
 
 log = logging.getLogger("stylecast.drivers.serial")
 
@@ -164,7 +164,7 @@ def parse_serial_url(url: str) -> tuple[str, dict]:
     the one URL grammar (``urls.parse_url``: duplicate and unknown options refused); any
     other pyserial URL (``loop://``, ``socket://host:port``, ``spy://...``, ``rfc2217://``)
     or a bare device path is passed to ``serial.serial_for_url`` unchanged."""
-    from .urls import parse_url
+    from stylecast.drivers.urls import parse_url
 
     if not isinstance(url, str) or not url.strip():
         raise UserError("empty serial URL; give a device such as serial:///dev/ttyUSB0?baud=921600")
@@ -424,3 +424,15 @@ def _write_nonblocking(port, data: bytes) -> int:
         return os.write(fd, data)
     except BlockingIOError:
         return 0
+
+
+# ------------------------------------------------------------------ the daemon's serial:// source
+
+def open_source(url, performer: str):
+    """The daemon's ``serial://`` factory (``drivers.sources``):
+    ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=1&blend=0.3``."""
+    from stylecast.drivers.trackers.solver import TRACKER_OPTIONS, solved_source
+
+    opts = url.take({"baud": (int, DEFAULT_BAUD), **TRACKER_OPTIONS})
+    trackers = SerialTrackerSource(f"serial://{serial_device(url)}?baud={opts['baud']}")
+    return solved_source(url, trackers, performer, opts)

@@ -27,9 +27,9 @@ from stylecast.motion.clip import pose_world
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.unity import position_to_unity, rotation_to_unity, unity_euler_degrees
 
-from .osc_packets import encode_message, pack_datagrams
-from .urls import EndpointUrl
-from .vmc_out import VmcSender
+from stylecast.drivers.vmc.osc_packets import encode_message, pack_datagrams
+from stylecast.drivers.urls import EndpointUrl
+from stylecast.drivers.vmc.vmc_out import VmcSender
 
 DEFAULT_PORT = 9000
 # VRChat tracker index -> humanoid bone whose origin and rotation the tracker follows.

@@ -49,9 +49,9 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.unity import position_to_unity, rotation_to_unity
 
-from .osc_packets import (DEFAULT_MAX_DATAGRAM, IMMEDIATE, check_port, encode_message,
+from stylecast.drivers.vmc.osc_packets import (DEFAULT_MAX_DATAGRAM, IMMEDIATE, check_port, encode_message,
                           group_for_bundles, osc_string, pack_datagrams)
-from .urls import parse_vmc_url
+from stylecast.drivers.urls import parse_vmc_url
 
 ROOT_ADDRESS = "/VMC/Ext/Root/Pos"
 BONE_ADDRESS = "/VMC/Ext/Bone/Pos"
@@ -418,3 +418,46 @@ def open_sink(url, targets: list[tuple[str, int]], bundled: bool = True, tap=Non
     overrides the daemon's --unbundled for this receiver."""
     opts = url.take({"bundled": (bool, None)})
     return VmcOut(targets, bundled if opts["bundled"] is None else opts["bundled"], tap)
+
+
+# ------------------------------------------------ trackers as VMC (stylecast emulate --to vmc://)
+
+class VmcTrackerSink:
+    """Tracker samples as VMC tracker messages (``vmc://HOST:PORT``), one bundle per frame.
+
+    Lost trackers are simply not sent (VMC has no status flag for them)."""
+
+    def __init__(self, url: str):
+        self.sender = VmcSender.from_urls([url])
+        self.frames = 0
+
+    def send(self, samples: list) -> None:  # trackers.TrackerSample (vmc/ never imports trackers/ at run time)
+        msgs = [_VmcTracker(s) for s in samples if s.valid]
+        if not samples:
+            return
+        try:
+            datagrams = encode_trackers(msgs, time=samples[0].timestamp)
+        except ValueError:  # non-finite pose: never put NaN on the wire
+            return
+        self.sender.send_datagrams(datagrams)
+        self.frames += 1
+
+    @property
+    def stats(self) -> dict:
+        return self.sender.counters()
+
+    def close(self) -> None:
+        self.sender.close()
+
+
+class _VmcTracker:
+    """The shape ``vmc_out.encode_trackers`` reads (kind, serial, position, rotation, local)."""
+
+    __slots__ = ("kind", "serial", "position", "rotation", "local")
+
+    def __init__(self, s: TrackerSample):
+        self.kind = s.role.vmc_kind.lower()
+        self.serial = s.role.serial
+        self.position = s.position
+        self.rotation = s.orientation
+        self.local = False

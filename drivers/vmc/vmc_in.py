@@ -75,11 +75,11 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.unity import (position_from_unity, position_to_unity, rotation_from_unity)
 
-from .osc_packets import check_port, decode
-from .urls import parse_vmc_url
+from stylecast.drivers.vmc.osc_packets import check_port, decode
+from stylecast.drivers.urls import parse_vmc_url
 
 if TYPE_CHECKING:
-    from .urls import EndpointUrl
+    from stylecast.drivers.urls import EndpointUrl
 
 _BONE_INDEX = {name: j for j, name in enumerate(HUMANOID_BONES)}
 _POSE_TAGS = "sfffffff"
@@ -511,7 +511,7 @@ class VmcSource:
             self.solved.start(now)
 
     def poll(self, now: float) -> list[PoseFrame]:
-        from .trackers import samples_from_vmc
+        from stylecast.drivers.trackers.trackers import samples_from_vmc
 
         bones = []
         for f in self.receiver.poll():
@@ -565,8 +565,8 @@ def open_source(url: "EndpointUrl", performer: str) -> VmcSource:
     """Factory for ``drivers.sources``: ``vmc://BIND[:PORT][?name=NAME&input=auto|bones|
     trackers&points=10|6&calibrate=tpose&roles=SERIAL:ROLE,...&blend=S]`` (port 39540,
     the VMC performer port, when omitted; bind 127.0.0.1 when empty)."""
-    from .solver import TRACKER_OPTIONS, solved_source
-    from .trackers import parse_role_map
+    from stylecast.drivers.trackers.solver import TRACKER_OPTIONS, solved_source
+    from stylecast.drivers.trackers.trackers import parse_role_map
 
     opts = url.take({"name": (str, ""), "input": (str, "auto"), "roles": (str, ""), **TRACKER_OPTIONS})
     if opts["input"] not in INPUT_MODES:

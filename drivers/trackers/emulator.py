@@ -27,7 +27,7 @@ from stylecast.motion.clock import RealClock
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES
 
-from .trackers import (ALL_ROLES, TrackerPoses, TrackerRole, TrackerSample, TrackerStatus, nominal_mount,
+from stylecast.drivers.trackers.trackers import (ALL_ROLES, TrackerPoses, TrackerRole, TrackerSample, TrackerStatus, nominal_mount,
                        roles_for_points)
 
 N_ROLES = len(ALL_ROLES)
@@ -170,72 +170,6 @@ def _dropouts(rng, T: int, n: int, rate: float, burst: float) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ sinks and pacing
-
-
-class VmcTrackerSink:
-    """Tracker samples as VMC tracker messages (``vmc://HOST:PORT``), one bundle per frame.
-
-    Lost trackers are simply not sent (VMC has no status flag for them)."""
-
-    def __init__(self, url: str):
-        from .vmc_out import VmcSender
-
-        self.sender = VmcSender.from_urls([url])
-        self.frames = 0
-
-    def send(self, samples: list[TrackerSample]) -> None:
-        from .vmc_out import encode_trackers
-
-        msgs = [_VmcTracker(s) for s in samples if s.valid]
-        if not samples:
-            return
-        try:
-            datagrams = encode_trackers(msgs, time=samples[0].timestamp)
-        except ValueError:  # non-finite pose: never put NaN on the wire
-            return
-        self.sender.send_datagrams(datagrams)
-        self.frames += 1
-
-    @property
-    def stats(self) -> dict:
-        return self.sender.counters()
-
-    def close(self) -> None:
-        self.sender.close()
-
-
-class _VmcTracker:
-    """The shape ``vmc_out.encode_trackers`` reads (kind, serial, position, rotation, local)."""
-
-    __slots__ = ("kind", "serial", "position", "rotation", "local")
-
-    def __init__(self, s: TrackerSample):
-        self.kind = s.role.vmc_kind.lower()
-        self.serial = s.role.serial
-        self.position = s.position
-        self.rotation = s.orientation
-        self.local = False
-
-
-def open_sink(url: str, clock=None):
-    """``vmc://HOST:PORT`` -> VmcTrackerSink; ``serial://...``, any other pyserial URL or a
-    device path -> SerialTrackerSink (pyserial's own schemes are pyserial's to parse)."""
-    from .urls import parse_url
-
-    text = str(url).strip()
-    if "://" not in text and not text.startswith("/"):
-        raise UserError(f"--to {text!r} is not an output; give serial:///dev/pts/N?baud=921600 or vmc://HOST:PORT")
-    if "://" in text and parse_url(text).scheme == "vmc":
-        return VmcTrackerSink(text)
-    from .serial_trackers import SerialTrackerSink
-
-    sink = SerialTrackerSink(text, clock=clock)
-    if not sink.connected:  # at start a missing device is a typo, not an unplugged cable
-        problem = sink.stats.last_error
-        sink.close()
-        raise UserError(f"cannot open serial output {text} ({problem}); check the device path "
-                        f"(for a pseudo-terminal: the /dev/pts/N its other end printed)")
-    return sink
 
 
 class Emulator:

@@ -47,13 +47,13 @@ from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.errors import UserError
 from stylecast.motion.skeleton import Skeleton
 
-from .solver_body import DEFAULT_BLEND_TIME, N_ROLES, R, _as_arrays
-from .solver_calibration import Calibration, calibrate_known_pose, calibrate_tpose  # noqa: F401 (public API)
-from .solver_hold import _HoldBlend
-from .solver_ik import BonePoses, IKTables, solve_ik
-from .solver_math import _align, _cross, _swing, _two_bone, _unit  # noqa: F401 (tests/test_solver.py checks them)
-from .sources import Source
-from .trackers import TrackerPoses
+from stylecast.drivers.trackers.solver_body import DEFAULT_BLEND_TIME, N_ROLES, R, _as_arrays
+from stylecast.drivers.trackers.solver_calibration import Calibration, calibrate_known_pose, calibrate_tpose  # noqa: F401 (public API)
+from stylecast.drivers.trackers.solver_hold import _HoldBlend
+from stylecast.drivers.trackers.solver_ik import BonePoses, IKTables, solve_ik
+from stylecast.drivers.trackers.solver_math import _align, _cross, _swing, _two_bone, _unit  # noqa: F401 (tests/test_solver.py checks them)
+from stylecast.drivers.sources import Source
+from stylecast.drivers.trackers.trackers import TrackerPoses
 
 
 class TrackerSolver:
@@ -134,7 +134,7 @@ class SolvedTrackerSource(Source):
     def __init__(self, trackers, performer: str, points: int = 10, calibrate_seconds: float = 1.0,
                  blend_time: float = DEFAULT_BLEND_TIME, calibration: Calibration | None = None,
                  flush_after: float = 0.02):
-        from .trackers import FrameAssembler, roles_for_points
+        from stylecast.drivers.trackers.trackers import FrameAssembler, roles_for_points
 
         self.trackers = trackers
         self.performer = performer
@@ -181,7 +181,7 @@ class SolvedTrackerSource(Source):
             if self.solve_errors == 1:
                 import logging
 
-                logging.getLogger("stylecast.drivers.solver").exception("%s: solver failed", self.performer)
+                logging.getLogger("stylecast.drivers.trackers.solver").exception("%s: solver failed", self.performer)
             self.last_problem = f"solver failed: {exc}"
             solved = []
         self.frames_solved += len(solved)
@@ -199,7 +199,7 @@ class SolvedTrackerSource(Source):
         except UserError as exc:
             self.calibration_failures += 1
             self.last_problem = str(exc)
-            logging.getLogger("stylecast.drivers.solver").warning("%s: calibration failed (%s); trying again",
+            logging.getLogger("stylecast.drivers.trackers.solver").warning("%s: calibration failed (%s); trying again",
                                                                  self.performer, exc)
             self._calibration_frames = []
             return
@@ -239,16 +239,6 @@ class SolvedTrackerSource(Source):
         close = getattr(self.trackers, "close", None)
         if close is not None:
             close()
-
-
-def open_source(url, performer: str) -> SolvedTrackerSource:
-    """The daemon's ``serial://`` factory (``drivers.sources``):
-    ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=1&blend=0.3``."""
-    from .serial_trackers import DEFAULT_BAUD, SerialTrackerSource, serial_device
-
-    opts = url.take({"baud": (int, DEFAULT_BAUD), **TRACKER_OPTIONS})
-    trackers = SerialTrackerSource(f"serial://{serial_device(url)}?baud={opts['baud']}")
-    return solved_source(url, trackers, performer, opts)
 
 
 # The options every tracker source takes (serial:// and vmc:// with trackers), one spec.

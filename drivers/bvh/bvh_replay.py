@@ -17,8 +17,8 @@ import numpy as np
 from stylecast.motion.clip import Clip, PoseFrame
 from stylecast.motion.errors import UserError
 
-from .sources import Source
-from .urls import EndpointUrl
+from stylecast.drivers.sources import Source
+from stylecast.drivers.urls import EndpointUrl
 
 MAX_BURST_SECONDS = 2.0  # a poll after a long stall returns at most 2 s (the newest frames)
 
