@@ -31,11 +31,11 @@ import logging
 import math
 import threading
 
+from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings
 
-from stylecast.motion.clock import Clock
 from .commands import apply_command
 from .config import FPS, DaemonConfig
 from .control import ControlServer

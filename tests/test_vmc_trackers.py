@@ -207,3 +207,47 @@ def test_a_calibrated_serial_source_sends_the_performers_own_offsets():
     err, _ = solved_error(motion, moving(frames))
     print(f"\nserial 10 points: FK of the VMC output vs the performer's joints, mean {err.mean():.2f} cm")
     assert err.mean() <= 1.0
+
+
+@pytest.mark.slow
+def test_stylecast_emulate_into_stylecast_serve_gives_vmc_out(tmp_path):
+    """The issue's report, as a user runs it: `stylecast serve --source vmc://...` and
+    `stylecast emulate --to vmc://... --points 10` (real clock, 30 Hz trackers from the
+    shipped clip, a T-pose first) -> restyled VMC at 60 Hz with the calibrated proportions."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    probe = VmcReceiver("127.0.0.1", 0)
+    port_in = probe.address[1]
+    probe.close()  # a free port for the daemon's vmc:// source
+    out = VmcReceiver("127.0.0.1", 0)
+    serve = subprocess.Popen(
+        [sys.executable, "-m", "stylecast", "serve", "--source", f"vmc://127.0.0.1:{port_in}?points=10&calibrate=tpose",
+         "--out", "vmc://127.0.0.1:%d" % out.address[1], "--model", "identity", "--control", "off",
+         "--duration", "30"], cwd=repo, stderr=subprocess.PIPE, text=True)
+    frames = []
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            line = serve.stderr.readline()
+            if "serving" in line or not line:
+                break
+        emulate = subprocess.run(
+            [sys.executable, "-m", "stylecast", "emulate", "--bvh", str(bundled_clip()), "--to",
+             f"vmc://127.0.0.1:{port_in}", "--points", "10", "--tpose", "1.5", "--frames", "180"],
+            cwd=repo, capture_output=True, text=True, timeout=60)
+        assert emulate.returncode == 0, emulate.stderr
+        for _ in range(50):
+            frames += [f for f in out.poll(0.02) if f.pose is not None]
+    finally:
+        serve.terminate()
+        serve.communicate(timeout=20)
+        out.close()
+    assert len(frames) > 120, len(frames)  # 4.5 s of walk less the daemon's delay, at 60 Hz
+    steps = np.diff([f.sender_time for f in frames])
+    assert np.median(steps) == pytest.approx(1 / OUTPUT_FPS, abs=1e-4)
+    hips = np.stack([f.pose.root_position for f in frames])
+    assert np.ptp(hips[:, 2]) > 100  # the walk walks (the Bandai walk covers ~4 m in 4.5 s)
+    assert not np.allclose(frames[-1].offsets[1:], humanoid_skeleton_default().offsets[1:], atol=0.5)

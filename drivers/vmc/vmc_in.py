@@ -439,6 +439,7 @@ class VmcReceiver:
 
 
 INPUT_MODES = ("auto", "bones", "trackers")
+MAX_TRACKERS_KEPT = 64  # latest sample per tracker, for status and tests
 BONES_PRECEDENCE_S = 0.5  # auto: trackers are solved only after this long without bones
 SKELETON_TOLERANCE_CM = 0.05  # offsets that move less than this are not a new skeleton
 
@@ -516,7 +517,9 @@ class VmcSource:
         bones = []
         for f in self.receiver.poll():
             for t in f.trackers:
-                self.trackers[(t.kind, t.serial, t.local)] = t
+                key = (t.kind, t.serial, t.local)
+                if key in self.trackers or len(self.trackers) < MAX_TRACKERS_KEPT:  # bounded: serials are free text
+                    self.trackers[key] = t
             if f.pose is not None and self.input != "trackers":
                 # Stamped with the sender's own time (/VMC/Ext/T) when it sends one: the
                 # session resamples by it, so receive jitter does not become motion jitter.
