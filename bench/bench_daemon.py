@@ -38,7 +38,7 @@ from machine import describe  # bench/machine.py (scripts run from bench/)
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "bandai"
 CHECKPOINT = REPO / "models" / "checkpoints" / "normal2exhausted.safetensors"
-FPS = 60.0
+from stylecast.motion.clock import OUTPUT_FPS as FPS  # noqa: E402 (the one definition)
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -55,12 +55,15 @@ def restyler():
 
 def base_motion():
     """A Bandai walk as humanoid motion, or a synthetic one if the data is absent."""
-    from stylecast.drivers.bvh_replay import humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import humanoid_motion
     from stylecast.motion.bvh import read_bvh
+
+    from stylecast.motion.resample import resample
 
     walk = DATA / "dataset-2" / "data" / "dataset-2_walk_normal_001.bvh.gz"
     if walk.exists():
-        return humanoid_motion(read_bvh(walk))
+        # At the output rate, so one replayed frame is one stream frame (indexed_source).
+        return resample(humanoid_motion(read_bvh(walk)), FPS)
     sys.path.insert(0, str(REPO))
     from tests.test_daemon import walk_clip
 
@@ -69,7 +72,7 @@ def base_motion():
 
 def indexed_source(motion, name):
     """A looping replay whose hips x position (cm) is 10 x the stream frame index."""
-    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
     from stylecast.motion.clip import PoseFrame
 
     class Indexed(ReplaySource):
@@ -159,7 +162,7 @@ def table(title, header, rows):
 
 
 def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0):
-    from stylecast.daemon.clock import RealClock
+    from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
@@ -230,7 +233,7 @@ def bench_compute(model, motion, seconds=10.0):
     """Work per tick under a virtual clock (no waiting, no scheduler noise): the whole
     tick, the model included, done serially. A tick costing under 16.7 ms of one core is
     what real time needs, so this bounds capacity on an idle machine from the work alone."""
-    from stylecast.daemon.clock import FakeClock
+    from stylecast.motion.clock import FakeClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
@@ -286,7 +289,7 @@ def bench_cpu(model, motion, n=8, seconds=8.0):
         rows.append((label, f"{r['cpu'] / (n * r['wall']) * 1e3:.2f}", f"{r['cpu'] / r['wall'] * 100:.0f}%",
                      r["dropped"]))
     # The relay floor: feed the daemon's own packets (captured once) at n performers x 60 fps.
-    from stylecast.daemon.clock import FakeClock
+    from stylecast.motion.clock import FakeClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
@@ -349,10 +352,10 @@ def ratio(sums):
 
 
 def bench_seams(model):
-    from stylecast.daemon.clock import FakeClock
+    from stylecast.motion.clock import FakeClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
-    from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource, humanoid_motion
     from stylecast.motion.bvh import read_bvh
 
     rows, actions, pooled = [], [], {}
@@ -389,9 +392,10 @@ def bench_seams(model):
 
 
 def ReplaySourceRotations(motion):  # noqa: N802 (reads like the source it stands for)
-    from stylecast.drivers.bvh_replay import ReplaySource
+    """The rotations the daemon's sessions see: the motion on the 60 Hz output grid."""
+    from stylecast.motion.resample import resample
 
-    return ReplaySource(motion, "x").rotations
+    return resample(motion, FPS).rotations
 
 
 def main(argv):

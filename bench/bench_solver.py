@@ -41,8 +41,8 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from stylecast.drivers.emulator import emulate_trackers, load_humanoid  # noqa: E402
-from stylecast.drivers.solver import TrackerSolver, calibrate_known_pose  # noqa: E402
+from stylecast.drivers.trackers.emulator import emulate_trackers, load_humanoid  # noqa: E402
+from stylecast.drivers.trackers.solver import TrackerSolver, calibrate_known_pose  # noqa: E402
 from stylecast.motion import Clip, forward_kinematics  # noqa: E402
 from stylecast.motion.humanoid import HUMANOID_BONES  # noqa: E402
 
@@ -100,7 +100,7 @@ def accuracy(files: list[Path], out) -> None:
 
 
 def _baseline(rev: str):
-    """drivers/solver.py as it was at git revision ``rev``, imported beside the current one
+    """drivers/trackers/solver.py as it was at git revision ``rev``, imported beside the current one
     (its relative imports resolve to today's drivers package), for before/after figures
     from the same run: on a shared machine only those compare."""
     import importlib.util
@@ -108,7 +108,7 @@ def _baseline(rev: str):
     import tempfile
 
     repo = Path(__file__).resolve().parents[1]
-    src = subprocess.run(["git", "-C", str(repo), "show", f"{rev}:drivers/solver.py"], capture_output=True,
+    src = subprocess.run(["git", "-C", str(repo), "show", f"{rev}:drivers/trackers/solver.py"], capture_output=True,
                          text=True, check=True).stdout
     with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
         f.write(src)
@@ -199,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--step", type=int, default=10, help="take every STEP-th clip (1: all)")
     ap.add_argument("--throughput-only", action="store_true")
     ap.add_argument("--runs", type=int, default=5, help="timed runs per throughput figure (median reported)")
-    ap.add_argument("--baseline", metavar="REV", help="also time drivers/solver.py at git revision REV (e.g. "
+    ap.add_argument("--baseline", metavar="REV", help="also time drivers/trackers/solver.py at git revision REV (e.g. "
                     "1912b04, before the per-frame rewrite) in the same runs")
     args = ap.parse_args(argv)
     files = []

@@ -35,9 +35,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # a checkout witho
 
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from stylecast.drivers.osc_packets import decode  # noqa: E402
-from stylecast.drivers.vmc_in import VmcParser  # noqa: E402
-from stylecast.drivers.vmc_out import FrameEncoder, VmcSender, encode_frame_reference  # noqa: E402
+from stylecast.drivers.vmc.osc_packets import decode  # noqa: E402
+from stylecast.drivers.vmc.vmc_in import VmcParser  # noqa: E402
+from stylecast.drivers.vmc.vmc_out import FrameEncoder, VmcSender, encode_frame_reference  # noqa: E402
 from stylecast.motion.humanoid import humanoid_skeleton_default  # noqa: E402
 
 

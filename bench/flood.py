@@ -63,7 +63,7 @@ class CountingHandler(logging.Handler):
 
 def walk_stream():
     """A humanoid walk as 60 fps arrays (Bandai if present, else synthetic)."""
-    from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource, humanoid_motion
     from stylecast.motion.bvh import read_bvh
 
     walk = DATA / "dataset-2" / "data" / "dataset-2_walk_normal_001.bvh.gz"
@@ -73,7 +73,10 @@ def walk_stream():
         from tests.test_daemon import walk_clip
 
         motion, name = walk_clip(600), "synthetic walk"
-    stream = ReplaySource(motion, "x", loop=True)
+    from stylecast.motion.clock import OUTPUT_FPS
+    from stylecast.motion.resample import resample
+
+    stream = ReplaySource(resample(motion, OUTPUT_FPS), "x", loop=True)  # the sessions' 60 Hz view
     return motion, stream.rotations, stream.root_positions, name
 
 
@@ -87,10 +90,10 @@ def run_flood(seconds: float = 20.0, rate: float = 50_000, performers: int = 8, 
               junk_to: str = "legit", junk_senders: int = 2, restyler: str = "standin", hop: int = 15,
               quiet: bool = False) -> dict:
     """Run one flood; return every figure (see the module docstring)."""
-    from stylecast.daemon.clock import RealClock
+    from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
-    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
     from stylecast.drivers.sources import open_source
     from stylecast.motion.humanoid import humanoid_skeleton_default
 

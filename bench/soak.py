@@ -41,7 +41,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 DATA = REPO.parent / "shared" / "data" / "bandai"
 CHECKPOINT = REPO / "models" / "checkpoints" / "normal2exhausted.safetensors"
-FPS = 60.0
+from stylecast.motion.clock import OUTPUT_FPS as FPS  # noqa: E402 (the one definition)
 
 
 def proc_status() -> dict:
@@ -78,7 +78,7 @@ def soak_receiver(socks, duration, ready, results) -> None:
     """Receive VMC; keep (T, arrival - T) per frame per port; report at the end."""
     import select
 
-    from stylecast.drivers.vmc_in import VmcParser
+    from stylecast.drivers.vmc.vmc_in import VmcParser
 
     ports = [s.getsockname()[1] for s in socks]
     parsers = [VmcParser(f"out{p}") for p in ports]
@@ -131,7 +131,7 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
          hop: int = 15, log=print) -> dict:
     from tests.hardening_junk import bind_consecutive
 
-    from stylecast.daemon.clock import RealClock
+    from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
     from stylecast.daemon.restylers import load_restyler

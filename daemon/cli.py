@@ -95,7 +95,7 @@ def cmd_demo(args) -> int:
 
 
 def cmd_repair(args) -> int:
-    from stylecast.drivers.bvh_recorder import repair_bvh
+    from stylecast.drivers.bvh.bvh_recorder import repair_bvh
 
     frames, dropped = repair_bvh(args.file)
     print(f"{args.file}: {frames} frames kept, {dropped} bytes of a cut last frame dropped; frame count fixed")

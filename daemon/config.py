@@ -19,12 +19,13 @@ import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.errors import UserError
 from stylecast.motion.words import DEFAULT_HOP
 
 from .control import DEFAULT_ALLOW, DEFAULT_CONTROL_PORT
 
-FPS = 60.0
+FPS = OUTPUT_FPS  # the one definition lives in motion.clock
 
 
 @dataclass

@@ -1,19 +1,13 @@
 """The OSC control port: change intensity, bypass, direction, model while live.
 
-Addresses (an optional trailing string names one performer; without it, all):
-
-    /stylecast/intensity  f value [s performer]   0..1, slerp input -> restyled
-    /stylecast/bypass     i 0|1   [s performer]   (f, T and F accepted too)
-    /stylecast/crossfade  f seconds               duration of every fade from now on
-    /stylecast/direction  s name                  e.g. "a2b" / "b2a" for the loaded model
-    /stylecast/model      s name-or-path          loaded in the background, then swapped
-    /stylecast/status                             replied to the sender (see status.py)
+The addresses and their arguments are the one table in ``commands.py``; this module is
+the transport (socket, allow-list, counters, queue) and never interprets a command.
 
 Who may talk: UDP is unauthenticated, so the port binds to 127.0.0.1 unless told
 otherwise and accepts datagrams only from an allow-list of source networks (default
 loopback). A refused sender is logged once (per address, bounded) and counted; so is
 every malformed packet, by reason, never line by line: a flood must not become a log
-flood. Decoding uses the strict, never-raising decoder of ``drivers.osc_packets``.
+flood. Decoding uses the strict, never-raising decoder of ``drivers.vmc.osc_packets``.
 
 This thread only receives, checks and queues; the output loop applies the commands at
 the start of its next tick, so a change takes effect on a frame boundary and every
@@ -24,13 +18,14 @@ from __future__ import annotations
 
 import ipaddress
 import logging
-import math
 import socket
 import threading
 from collections import Counter, deque
 
-from stylecast.drivers.osc_packets import decode, encode_message, pack_datagrams
+from stylecast.drivers.vmc.osc_packets import decode, encode_message, pack_datagrams
 from stylecast.motion.errors import UserError
+
+from .commands import parse_command  # noqa: F401  (re-exported: tests and fuzzers use it here)
 
 log = logging.getLogger("stylecast.daemon")
 
@@ -49,40 +44,6 @@ def parse_allow(entries) -> list:
             raise UserError(f"control allow-list entry {e!r} is not an IP address or network; "
                             f"write it as 127.0.0.1 or 192.168.1.0/24") from None
     return nets
-
-
-def _flag(value) -> bool | None:
-    if isinstance(value, bool):
-        return value
-    if isinstance(value, (int, float)):
-        return value != 0
-    return None
-
-
-def parse_command(address: str, tags: str, args: tuple):
-    """A decoded message -> (command, value, performer or None), or (None, reason)."""
-    performer = args[-1] if len(args) >= 2 and isinstance(args[-1], str) else None
-    first = args[0] if args else None
-    if address == "/stylecast/intensity":
-        # Non-finite values are refused, not clamped: +inf/-inf in a packet means a broken
-        # or hostile sender, and applying it as 1.0/0.0 would act on garbage (hardening).
-        if isinstance(first, (int, float)) and not isinstance(first, bool) and math.isfinite(first):
-            return ("intensity", min(1.0, max(0.0, float(first))), performer)
-    elif address == "/stylecast/bypass":
-        flag = _flag(first)
-        if flag is not None:
-            return ("bypass", flag, performer)
-    elif address == "/stylecast/crossfade":
-        if isinstance(first, (int, float)) and not isinstance(first, bool) and 0.0 <= first <= 60.0:
-            return ("crossfade", float(first), None)
-    elif address in ("/stylecast/direction", "/stylecast/model"):
-        if isinstance(first, str) and 0 < len(first) <= 512:
-            return (address.rsplit("/", 1)[1], first, None)
-    elif address == "/stylecast/status":
-        return ("status", None, None)
-    else:
-        return (None, "unknown_address")
-    return (None, "bad_arguments")
 
 
 class ControlServer:

@@ -1,7 +1,8 @@
 """``stylecast demo``: the no-hardware first run.
 
-Finds a Bandai clip (argument, ``--clip``, ``$STYLECAST_DATA``, or ``../shared/data``
-next to the repository or the working directory), replays it looping through the daemon
+Finds a Bandai clip (argument, ``--clip``, ``$STYLECAST_DATA``, ``../shared/data`` next
+to the repository or the working directory, else the walk shipped in the package, see
+``clips.py``), replays it looping through the daemon
 with the shipped model (pass-through with a clear message if the checkpoint is not
 there) and sends VMC to 127.0.0.1:39539 (any VMC marionette, or the viewer) and the
 unrestyled input to 127.0.0.1:39541; with the viewer installed and a display, it opens
@@ -52,8 +53,13 @@ def find_clip(given: str | None) -> Path:
             found = sorted(root.glob(pattern))
             if found:
                 return found[0]
+    from .clips import bundled_clip
+
+    shipped = bundled_clip()
+    if shipped is not None:
+        return shipped
     raise UserError("no Bandai clip found (looked for ../shared/data next to the repository and the current "
-                    "directory); pass one: stylecast demo path/to/clip.bvh")
+                    "directory, and this install lacks its shipped clip); pass one: stylecast demo path/to/clip.bvh")
 
 
 def demo_restyler(name: str):
@@ -87,7 +93,8 @@ def open_viewer(input_port: int | None) -> subprocess.Popen | None:
 
 
 def run_demo(args, config: DaemonConfig) -> int:
-    from stylecast.drivers.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource, humanoid_motion
+    from stylecast.drivers.urls import parse_url
     from stylecast.motion.bvh import read_bvh
 
     from .runner import run_daemon
@@ -103,7 +110,7 @@ def run_demo(args, config: DaemonConfig) -> int:
                           loop=True, speed=args.speed)
     print(f"stylecast demo: replaying {clip_path} (looping) -> {', '.join(config.out)}; "
           f"Ctrl-C to stop", file=sys.stderr)
-    input_port = int(config.out_input[0].rsplit(":", 1)[1]) if config.out_input else None
+    input_port = parse_url(config.out_input[0]).port if config.out_input else None
     viewer = open_viewer(input_port) if args.view else None
     try:
         return run_daemon(config, restyler=restyler, sources=[source])

@@ -27,21 +27,20 @@ Per tick, in this order (the order is what makes fake-clock replays exact):
 
 from __future__ import annotations
 
-import dataclasses
-
 import logging
 import math
 import threading
 
+from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings
 
-from .clock import Clock
+from .commands import apply_command
 from .config import FPS, DaemonConfig
 from .control import ControlServer
 from .inference import InferenceWorker
-from .output import (PerformerSinks, VmcOut, parse_outputs, performer_targets, recording_path)
+from .output import PerformerSinks, open_outputs, recording_path
 from .restylers import load_restyler, model_name, style_label, with_direction
 from .session import Session
 from .status import LatencyWindow, status_line, status_messages
@@ -55,16 +54,18 @@ MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not s
 BATCH_GROUP = 8  # performers whose words share one model call
 
 
-def staggered(settings: BlendSettings, k: int, performers: int) -> BlendSettings:
-    """Performer k's settings with its word grid shifted by its group's phase.
+def stagger_phase(hop: int, k: int, performers: int) -> int:
+    """Performer k's word-grid phase: its group's share of the hop.
 
     Performers that start together would hand all their words to the model on one tick
     and wait for one big batch; with delay = hop the model has one frame period, so a
     large batch comes back late (counted, faded to pass-through). Groups of
     ``BATCH_GROUP`` share a phase, and the groups spread evenly over the hop: words are
-    still batched, and no tick carries more than a group's worth."""
+    still batched, and no tick carries more than a group's worth. The phase is the only
+    per-performer setting: every session shares the daemon's one ``BlendSettings``, so a
+    live change (``/stylecast/crossfade``) reaches every performer."""
     groups = -(-performers // BATCH_GROUP)
-    return dataclasses.replace(settings, phase=(k // BATCH_GROUP) * settings.hop // groups)
+    return (k // BATCH_GROUP) * hop // groups
 
 
 class Daemon:
@@ -91,9 +92,10 @@ class Daemon:
         self.dropped_ticks = 0
         self.tick_lateness = LatencyWindow()  # how late each tick started (scheduler, load)
         self.control_errors = 0
+        self._status_replies = 0
         self._pending_model = None
         self._model_lock = threading.Lock()
-        self._loader_busy = False  # one model loader thread at a time (see _load_model_async)
+        self._loader_busy = False  # one model loader thread at a time (see load_model_async)
         self._requested_model: str | None = None
         self.model_requests_replaced = 0
         self._t0: float | None = None
@@ -106,8 +108,6 @@ class Daemon:
 
     # -- construction -----------------------------------------------------------------
     def _open(self, sources, tap, frame_taps) -> None:
-        outs, bundled_out = parse_outputs(self.config.out)
-        ins, bundled_in = parse_outputs(self.config.out_input)
         names = set()
         for k, source in enumerate(sources):
             if source.performer in names:
@@ -116,17 +116,16 @@ class Daemon:
             skeleton = source.skeleton if source.skeleton is not None else humanoid_skeleton_default()
             if tuple(skeleton.names) != HUMANOID_BONES:
                 raise UserError(f"source {source.performer!r} does not deliver the humanoid skeleton")
-            session = Session(k, source, staggered(self.settings, k, len(sources)), skeleton)
+            session = Session(k, source, self.settings, skeleton,
+                              phase=stagger_phase(self.settings.hop, k, len(sources)))
             session.intensity = self.config.intensity
             session.set_bypass(self.config.bypass)
             self.sessions.append(session)
             bundled = self.config.bundled
             self.sinks.append(PerformerSinks(
                 skeleton.offsets,
-                vmc=VmcOut(performer_targets(outs, k), bundled if bundled_out is None else bundled_out, tap)
-                if outs else None,
-                vmc_input=VmcOut(performer_targets(ins, k), bundled if bundled_in is None else bundled_in)
-                if ins else None,
+                outputs=open_outputs(self.config.out, k, bundled, tap),
+                inputs=open_outputs(self.config.out_input, k, bundled),
                 recorder=self._recorder(k, skeleton),
                 frame_taps=frame_taps))
         address = self.config.control_address()
@@ -136,7 +135,7 @@ class Daemon:
     def _recorder(self, k, skeleton):
         if not self.config.record:
             return None
-        from stylecast.drivers.bvh_recorder import BvhRecorder
+        from stylecast.drivers.bvh.bvh_recorder import BvhRecorder
 
         return BvhRecorder(recording_path(self.config.record, k), skeleton, FPS)
 
@@ -201,6 +200,9 @@ class Daemon:
         self.worker.submit(batch)
         vmc_time = self.ticks / FPS
         for session, sinks in zip(self.sessions, self.sinks):
+            if session.skeleton_changed:  # the performer's own proportions, from now on
+                session.skeleton_changed = False
+                sinks.set_offsets(session.skeleton.offsets)
             frame = session.render(drain=session.source.finished)
             if frame is None:
                 continue
@@ -224,39 +226,27 @@ class Daemon:
             log.info("model %s is live", self.style)
         if self.control is None:
             return
-        replies = 0
+        self._status_replies = 0
         for command, value, performer, addr in self.control.drain():
             try:
-                if command == "status":
-                    if replies < STATUS_REPLIES_PER_TICK:
-                        replies += 1
-                        self.control.reply(addr, status_messages(self.snapshot()))
-                else:
-                    self.apply(command, value, performer)
+                self.apply(command, value, performer, addr)
             except UserError as exc:
                 self._control_error(str(exc))
 
-    def apply(self, command: str, value, performer: str | None = None) -> None:
-        """Apply one setting live (also the API tests and embedders use)."""
-        targets = [s for s in self.sessions if performer in (None, s.performer)]
-        if performer is not None and not targets:
-            raise UserError(f"no performer called {performer!r}")
-        if command == "intensity":
-            for s in targets:
-                s.intensity = float(value)
-        elif command == "bypass":
-            for s in targets:
-                s.set_bypass(bool(value))
-        elif command == "crossfade":
-            self.settings.crossfade_frames = max(1, round(float(value) * FPS))
-        elif command == "direction":
-            model = with_direction(self.worker.restyler, str(value))
-            self.worker.set_restyler(model)
-            self.style = style_label(model)
-        elif command == "model":
-            self._load_model_async(str(value))
-        else:
-            raise UserError(f"unknown control command {command!r}")
+    def apply(self, command: str, value, performer: str | None = None, reply_to=None) -> None:
+        """Apply one setting live (also the API tests and embedders use); the commands
+        and what they do are the one table in ``commands.py``."""
+        apply_command(self, command, value, performer, reply_to)
+
+    def reply_status(self, addr) -> None:
+        if self.control is not None and addr is not None and self._status_replies < STATUS_REPLIES_PER_TICK:
+            self._status_replies += 1
+            self.control.reply(addr, status_messages(self.snapshot()))
+
+    def set_direction(self, direction: str) -> None:
+        model = with_direction(self.worker.restyler, direction)
+        self.worker.set_restyler(model)
+        self.style = style_label(model)
 
     def _control_error(self, message: str) -> None:
         # Counted always, logged rarely: a sender repeating a bad command, or a flood of
@@ -268,7 +258,7 @@ class Daemon:
         elif n % 1000 == 0:
             log.warning("control: %s (%d refused commands so far; not all are logged)", message, n)
 
-    def _load_model_async(self, name: str) -> None:
+    def load_model_async(self, name: str) -> None:
         # One loader thread at a time; requests arriving while it works are coalesced into
         # the latest (hardening: a flood of /stylecast/model used to start one thread per
         # packet, each reading a checkpoint).

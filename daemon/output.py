@@ -1,10 +1,11 @@
 """Sinks of one performer: restyled VMC, unrestyled VMC (--out-input), BVH recording.
 
-VMC goes through ``drivers.vmc_out`` (the struct-packed encoder and the non-blocking
-fan-out sender); this module only decides where each performer's frames go:
+Sinks are opened by URL scheme through ``drivers.sinks`` (``vmc://`` VMC,
+``vrchat://`` VRChat OSC trackers); this module only decides where each performer's
+frames go:
 
-* every ``--out vmc://HOST:PORT`` is one receiver; performer k (k-th ``--source``) goes
-  to PORT + k, because a VMC marionette shows exactly one avatar per port;
+* every ``--out SCHEME://HOST:PORT`` is one receiver; performer k (k-th ``--source``)
+  goes to PORT + k, because a VMC marionette (or a VRChat) shows exactly one avatar per port;
 * ``--record out.bvh`` writes performer 0 to out.bvh and performer k > 0 to out.k.bvh.
 
 A ``tap`` callable, when given, sees every datagram before it is sent (tests capture the
@@ -17,27 +18,28 @@ from pathlib import Path
 
 import numpy as np
 
-from stylecast.drivers.bvh_recorder import BvhRecorder
-from stylecast.drivers.osc_packets import parse_vmc_url
-from stylecast.drivers.vmc_out import VmcSender
+from stylecast.drivers.bvh.bvh_recorder import BvhRecorder
+from stylecast.drivers.sinks import check_sink_scheme, default_port, open_sink
+from stylecast.drivers.urls import parse_url
 from stylecast.motion.errors import UserError
 
 
-def parse_outputs(urls: list[str]) -> tuple[list[tuple[str, int]], bool | None]:
-    """``vmc://HOST:PORT[?bundled=0|1]`` each -> base addresses and the bundling choice."""
-    targets, bundled = [], None
-    for url in urls:
-        if not url.lower().startswith("vmc://"):
-            raise UserError(f"{url}: unknown output scheme; outputs are vmc://HOST:PORT")
-        host, port, opts = parse_vmc_url(url, allowed_options=("bundled",))
+def open_outputs(urls: list[str], k: int, bundled: bool, tap=None) -> list:
+    """Performer k's sinks for ``--out`` URLs, each opened by its scheme's registered
+    factory (``drivers.sinks``). URLs of one scheme with the same options share one sink
+    (one encode per frame, fanned out to every target)."""
+    groups: dict[tuple, tuple] = {}
+    for text in urls:
+        url = parse_url(text)
+        check_sink_scheme(url)
+        key = (url.scheme, tuple(sorted(url.options.items())))
+        host, port = url.address() if url.port is not None else (url.host or "127.0.0.1", default_port(url))
         if not 0 < port <= 65535:
-            raise UserError(f"{url}: give the receiver's port, as in vmc://{host}:39539")
-        if "bundled" in opts:
-            if opts["bundled"] not in ("0", "1"):
-                raise UserError(f"{url}: bundled must be 0 or 1")
-            bundled = opts["bundled"] == "1"
+            raise UserError(f"{text}: give the receiver's port, as in {url.scheme}://{host or '127.0.0.1'}:39539")
+        first, targets = groups.setdefault(key, (url, []))
         targets.append((host, port))
-    return targets, bundled
+    return [open_sink(url, performer_targets(targets, k), bundled=bundled, tap=tap)
+            for url, targets in groups.values()]
 
 
 def performer_targets(base: list[tuple[str, int]], k: int) -> list[tuple[str, int]]:
@@ -57,52 +59,40 @@ def recording_path(path: str | Path, k: int) -> Path:
     return path.with_name(f"{name}.{k}.bvh")
 
 
-class VmcOut:
-    """One performer's VMC stream to one or more receivers."""
-
-    def __init__(self, targets: list[tuple[str, int]], bundled: bool = True, tap=None):
-        self.sender = VmcSender(targets, bundled=bundled)
-        self.tap = tap
-
-    def send(self, root_position: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, time: float) -> None:
-        s = self.sender
-        try:
-            datagrams = s.encoder.encode(root_position, rotations, offsets, time)
-        except ValueError:
-            s.frames_rejected += 1  # non-finite pose: never put NaN on the wire
-            return
-        s.frames_sent += 1
-        if self.tap is not None:
-            self.tap(datagrams)
-        s.send_datagrams(datagrams)
-
-    def counters(self) -> dict:
-        return self.sender.counters()
-
-    def close(self) -> None:
-        self.sender.close()
-
-
 class PerformerSinks:
-    def __init__(self, offsets: np.ndarray, vmc: VmcOut | None = None, vmc_input: VmcOut | None = None,
+    """Where one performer's frames go. ``offsets`` are the performer's humanoid bone
+    offsets (cm); a source that learns or changes them reports it and the daemon calls
+    ``set_offsets``, so every sink sends the performer's own proportions."""
+
+    def __init__(self, offsets: np.ndarray, outputs: list | None = None, inputs: list | None = None,
                  recorder: BvhRecorder | None = None, frame_taps: list | None = None):
-        self.offsets = np.asarray(offsets, np.float64)  # humanoid bone offsets, cm
-        self.vmc = vmc
-        self.vmc_input = vmc_input
+        self.offsets = np.asarray(offsets, np.float64)
+        self.outputs = list(outputs or [])  # restyled frames: VMC, VRChat trackers, ...
+        self.inputs = list(inputs or [])  # the unrestyled input (--out-input)
         self.recorder = recorder
         self.frame_taps = list(frame_taps or [])
 
+    @property
+    def vmc(self):
+        """The first restyled VMC sink (benches and tests read its counters)."""
+        from stylecast.drivers.vmc.vmc_out import VmcOut
+
+        return next((o for o in self.outputs if isinstance(o, VmcOut)), None)
+
+    def set_offsets(self, offsets: np.ndarray) -> None:
+        self.offsets = np.asarray(offsets, np.float64)
+
     def emit(self, frame, time: float) -> None:
-        if self.vmc is not None:
-            self.vmc.send(frame.root_position, frame.rotations, self.offsets, time)
-        if self.vmc_input is not None:
-            self.vmc_input.send(frame.root_position, frame.input_rotations, self.offsets, time)
+        for sink in self.outputs:
+            sink.send(frame.root_position, frame.rotations, self.offsets, time)
+        for sink in self.inputs:
+            sink.send(frame.root_position, frame.input_rotations, self.offsets, time)
         if self.recorder is not None:
             self.recorder.append(frame.root_position, frame.rotations)
         for tap in self.frame_taps:
             tap(frame)
 
     def close(self) -> None:
-        for sink in (self.vmc, self.vmc_input, self.recorder):
+        for sink in (*self.outputs, *self.inputs, self.recorder):
             if sink is not None:
                 sink.close()

@@ -12,8 +12,8 @@ import signal
 import threading
 
 from stylecast.drivers.sources import open_source
+from stylecast.motion.clock import RealClock
 
-from .clock import RealClock
 from .config import DaemonConfig
 from .engine import Daemon
 from .restylers import load_restyler

@@ -4,7 +4,10 @@ The algorithm is ``motion.words`` (WordCutter + SeamBlender), the very code offl
 ``stylecast restyle`` runs through ``restyle_stream``; this module only adds what a live
 stream needs around it:
 
-* Frame indices count input frames in arrival order. Output frame t is rendered ``delay``
+* Rate and time: a source stamps frames in its own time base at its own rate; the
+  session's ``StreamResampler`` puts them on the 60 Hz output grid (slerp) and a fixed
+  offset maps source time onto the daemon clock.
+* Frame indices count (resampled) input frames in arrival order. Output frame t is rendered ``delay``
   frames after input frame t arrived (the blender's latency model), one frame per tick
   of the daemon's 60 Hz output clock.
 * Jitter: a tick that brings two input frames and one that brings none even out (the
@@ -29,7 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylecast.motion.clip import PoseFrame
+from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.footlock import FootLock
+from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter
 
@@ -51,13 +56,14 @@ class OutputFrame:
 
 
 class Session:
-    def __init__(self, index: int, source, settings: BlendSettings, skeleton: Skeleton):
+    def __init__(self, index: int, source, settings: BlendSettings, skeleton: Skeleton, phase: int | None = None):
         self.index = index
         self.source = source
         self.performer = source.performer
-        self.settings = settings
-        self.cutter = WordCutter(settings.hop, settings.word_length, settings.phase)
-        self.blender = SeamBlender(settings, len(skeleton))
+        self.settings = settings  # shared with the daemon and every session: never copied
+        self.phase = settings.phase if phase is None else phase
+        self.cutter = WordCutter(settings.hop, settings.word_length, self.phase)
+        self.blender = SeamBlender(settings, len(skeleton), phase=self.phase)
         # Planted feet of the input stay planted in the output (after the blender, as
         # offline ``restyle`` does); it looks ahead into the ``delay`` frames buffered.
         self.feet = FootLock.for_stream(skeleton, settings.delay)
@@ -80,6 +86,13 @@ class Session:
         self.words = 0
         self.words_failed = 0
         self.latency = LatencyWindow()
+        self.skeleton = getattr(source, "skeleton", None)
+        self.skeleton_changed = False
+        # Sources run at their own rate and time base; the session puts every stream on
+        # the output rate (drivers never resample).
+        self.resampler = StreamResampler(OUTPUT_FPS)
+        self._clock_offset: float | None = None
+        self._burst = 0  # frames the last ingest brought
 
     # -- input side -------------------------------------------------------------------
     def ingest(self, now: float) -> list[tuple[int, np.ndarray]]:
@@ -90,12 +103,35 @@ class Session:
         final frames are cut from real motion plus a held pose, exactly as offline
         ``restyle_stream`` pads a clip's end."""
         words = []
+        before = self.cutter.frames_seen
         for frame in self.source.poll(now):
-            words += self.push(frame)
+            restarts = self.resampler.restarts
+            for grid_frame in self.resampler.feed(frame):
+                words += self.push(self._on_daemon_clock(grid_frame, now, restarts))
+        self._burst = self.cutter.frames_seen - before
+        self._check_skeleton()
         if self.source.finished and self._inputs and self.cutter.frames_seen < self.frames_in + self.settings.delay:
             _, arrival, root, rotations = self._inputs[-1]
             words += self.push(PoseFrame(self.performer, arrival, root, rotations), held=True)
         return words
+
+    def _on_daemon_clock(self, frame: PoseFrame, now: float, restarts: int) -> PoseFrame:
+        # Source time -> daemon time by a fixed offset taken when the stream (re)starts:
+        # the frame's arrival for the latency figures. Jitter and drift are the ring's job
+        # (MAX_LAG, LAG_PATIENCE), not the timestamps'.
+        if self._clock_offset is None or self.resampler.restarts != restarts:
+            self._clock_offset = now - frame.timestamp
+        return PoseFrame(self.performer, frame.timestamp + self._clock_offset, frame.root_position, frame.rotations)
+
+    def _check_skeleton(self) -> None:
+        # The source contract: ``source.skeleton`` is the performer's proportions as last
+        # learnt (a VMC sender's bone offsets, a tracker calibration); a new object is a
+        # change, which the daemon passes on to the sinks.
+        skeleton = getattr(self.source, "skeleton", None)
+        if skeleton is not None and skeleton is not self.skeleton:
+            self.skeleton = skeleton
+            self.skeleton_changed = True
+            self.feet.set_offsets(skeleton.offsets)  # the lock's legs are the performer's
 
     def push(self, frame: PoseFrame, held: bool = False) -> list[tuple[int, np.ndarray]]:
         t = self.cutter.frames_seen
@@ -134,7 +170,14 @@ class Session:
         if target < 0:
             return None
         if self.out_t is None:
-            self.out_t = target
+            # A source slower than the output clock (30 Hz), or not a multiple of it
+            # (90 Hz), delivers resampled frames in bursts (two, then none). Start as far
+            # behind the newest frame as this tick's burst, so the output steps one frame
+            # per tick from the start instead of holding on the tick after the burst.
+            start = target - min(max(self._burst - 1, 0), MAX_LAG)
+            if start < 0:
+                return None
+            self.out_t = start
         elif not drain:
             behind = target - self.out_t
             self._lag_ticks = self._lag_ticks + 1 if behind > 0 else 0

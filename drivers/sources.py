@@ -6,8 +6,18 @@ that has arrived by ``now``, oldest first. A source never calls into the daemon 
 never blocks, so one stalled source cannot hold up the others; live sources receive on
 their own thread and ``poll`` drains a queue, replay sources compute from the clock.
 
-Frames are ``PoseFrame``s of the canonical humanoid (``motion.humanoid.HUMANOID_BONES``,
-T-pose-relative local rotations, root position in cm, internal BVH space), at 60 fps.
+The contract (aiortc's habit: timestamps travel with the data):
+
+* frames are ``PoseFrame``s of the canonical humanoid (``motion.humanoid.HUMANOID_BONES``,
+  T-pose-relative local rotations, root position in cm, internal BVH space), stamped with
+  the source's OWN time (a sender's /VMC/Ext/T, a tracker's device clock, a replay's
+  timeline), at the source's own rate, oldest first. A driver never resamples and never
+  stamps the daemon's time: the session maps source time onto the output clock and
+  resamples every stream to ``motion.clock.OUTPUT_FPS`` (``motion.resample.StreamResampler``);
+* ``skeleton`` is the performer's humanoid with its own bone offsets, or None until known.
+  A source that learns or changes it (a VMC sender's bone offsets, a tracker calibration)
+  sets a new ``Skeleton`` object; the session sees the change after a poll and the
+  daemon passes it on to the sinks, which then send the performer's proportions.
 
 The registry maps a URL scheme to ``module:function`` and imports it only when a URL
 with that scheme is opened, so ``stylecast --help`` never loads a driver and a driver
@@ -23,7 +33,7 @@ from stylecast.motion.clip import PoseFrame
 from stylecast.motion.errors import UserError
 from stylecast.motion.skeleton import Skeleton
 
-from .urls import EndpointUrl, parse_url
+from stylecast.drivers.urls import EndpointUrl, parse_url
 
 
 class Source:
@@ -31,7 +41,6 @@ class Source:
 
     performer: str = ""
     skeleton: Skeleton | None = None  # humanoid with this performer's bone lengths, if known
-    fps: float = 60.0
 
     def start(self, now: float) -> None:
         """Called once, from the daemon's clock, before the first poll."""
@@ -54,11 +63,11 @@ class Source:
 
 # scheme -> (module, function, what the user should know when it is missing)
 SOURCE_SCHEMES: dict[str, tuple[str, str]] = {
-    "bvh": ("stylecast.drivers.bvh_replay", "open_source"),
+    "bvh": ("stylecast.drivers.bvh.bvh_replay", "open_source"),
     # Live drivers written elsewhere (VMC receiver, serial trackers + solver): the daemon
     # only needs a factory with the signature above in these modules.
-    "vmc": ("stylecast.drivers.vmc_in", "open_source"),
-    "serial": ("stylecast.drivers.solver", "open_source"),
+    "vmc": ("stylecast.drivers.vmc.vmc_in", "open_source"),
+    "serial": ("stylecast.drivers.serial.serial_trackers", "open_source"),
 }
 
 

@@ -25,6 +25,7 @@ class EndpointUrl:
     port: int | None
     path: str
     options: dict
+    netloc: str = ""  # the authority as written (hostname() lowercases it; COM3 must stay COM3)
 
     def take(self, spec: dict[str, tuple[type, object]]) -> dict:
         """Options converted per ``spec`` {name: (type, default)}; unknown names refused."""
@@ -85,4 +86,16 @@ def parse_url(text: str) -> EndpointUrl:
     if scheme in ("bvh", "file") and parts.netloc:
         path = unquote(parts.netloc) + path
         host, port = "", None
-    return EndpointUrl(text, scheme, host, port, path, options)
+    return EndpointUrl(text, scheme, host, port, path, options, unquote(parts.netloc))
+
+
+def parse_vmc_url(url: str, allowed_options=(), default_host: str = "127.0.0.1") -> tuple[str, int, dict[str, str]]:
+    """``vmc://HOST:PORT?opt=value`` -> (host, port, options given), through the one
+    grammar above (duplicate and unknown options refused); UserError on anything wrong."""
+    parsed = parse_url(url)
+    if parsed.scheme != "vmc" or parsed.path not in ("", "/"):
+        raise UserError(f"bad VMC address {url!r}: write it as vmc://HOST:PORT, for example vmc://127.0.0.1:39539")
+    if parsed.port is None:
+        raise UserError(f"VMC address {url!r} has no port: add one, as in vmc://127.0.0.1:39539")
+    given = parsed.take({name: (str, None) for name in allowed_options})
+    return parsed.host or default_host, parsed.port, {k: v for k, v in given.items() if v is not None}

@@ -102,3 +102,22 @@ def rest_positions(skeleton: Skeleton) -> np.ndarray:
         if parent >= 0:
             p[j] = p[parent] + skeleton.offsets[j]
     return p
+
+
+def pose_world(parents: tuple[int, ...], offsets: np.ndarray, root_position: np.ndarray,
+               rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics of poses (..., J, 4) with the root at ``root_position`` (..., 3)
+    and every other joint at its bone offset: world positions (..., J, 3) and world
+    rotations (..., J, 4). What a sink needs from a streamed humanoid frame."""
+    rotations = np.asarray(rotations, dtype=np.float64)
+    offsets = np.asarray(offsets, dtype=np.float64)
+    world_r = np.empty_like(rotations)
+    world_p = np.empty(rotations.shape[:-1] + (3,))
+    for j, p in enumerate(parents):
+        if p < 0:
+            world_r[..., j, :] = rotations[..., j, :]
+            world_p[..., j, :] = root_position
+        else:
+            world_r[..., j, :] = rot.multiply(world_r[..., p, :], rotations[..., j, :])
+            world_p[..., j, :] = world_p[..., p, :] + rot.apply(world_r[..., p, :], offsets[j])
+    return world_p, world_r

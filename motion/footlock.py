@@ -144,6 +144,10 @@ class FootLock:
         ahead at most ``delay`` frames (the daemon and ``restyle`` both build it here)."""
         return cls(skeleton, ramp=min(ContactSettings.ramp, delay))
 
+    def set_offsets(self, offsets: np.ndarray) -> None:
+        """The performer's proportions changed (a calibration, a VMC sender's offsets)."""
+        self.offsets = np.asarray(offsets, dtype=np.float64)
+
     # -- input side ---------------------------------------------------------------------
     def push(self, roots: np.ndarray, rotations: np.ndarray) -> np.ndarray:
         """Input frames (n, 3) roots and (n, J, 4) local rotations, in order. Returns

@@ -59,3 +59,17 @@ def rotation_to_unity(q: np.ndarray) -> np.ndarray:
 def rotation_from_unity(q: np.ndarray) -> np.ndarray:
     """Unity quaternions (..., 4) xyzw -> internal quaternions (..., 4) xyzw."""
     return np.asarray(q, dtype=np.float64) * _QUATERNION_MIRROR
+
+
+def unity_euler_degrees(q_unity: np.ndarray) -> np.ndarray:
+    """Unity quaternions (..., 4) -> Unity Euler angles (..., 3) = (x, y, z) in degrees.
+
+    Unity's convention (``Quaternion.Euler``/``Transform.eulerAngles``): z about Z, then x
+    about X, then y about Y, all about the fixed axes, i.e. q = Qy * Qx * Qz, which is the
+    intrinsic "YXZ" sequence. VRChat's OSC trackers take rotations this way. Angles come
+    in (-180, 180]; Unity reads any equivalent angle. Not an axis flip: the quaternion
+    must already be in Unity space (``rotation_to_unity``)."""
+    from .rotations import to_euler
+
+    yxz = to_euler(q_unity, "YXZ")
+    return yxz[..., [1, 0, 2]]

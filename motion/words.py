@@ -125,8 +125,11 @@ class SeamBlender:
     of one frame, ``restyle`` whole clips, through the same code.
     """
 
-    def __init__(self, settings: BlendSettings, num_bones: int):
+    def __init__(self, settings: BlendSettings, num_bones: int, phase: int | None = None):
+        # ``settings`` may be shared by many blenders (the daemon's live settings); the
+        # word-grid phase is this stream's own, so it can be given apart from them.
         self.settings = settings
+        self.phase = settings.phase if phase is None else phase
         self.num_bones = num_bones
         self._words: dict[int, np.ndarray] = {}  # word end -> restyled word
         self._serving: int | None = None  # end frame of the word currently served
@@ -147,7 +150,7 @@ class SeamBlender:
 
     def serving_word(self, t: int) -> int:
         """End frame of the word that serves frame t (the first grid end >= t)."""
-        first = self.settings.word_length - 1 + self.settings.phase
+        first = self.settings.word_length - 1 + self.phase
         if t <= first:
             return first
         hop = self.settings.hop

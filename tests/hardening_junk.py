@@ -17,8 +17,8 @@ import struct
 
 import numpy as np
 
-from stylecast.drivers.osc_packets import encode_bundle, encode_message, osc_string
-from stylecast.drivers.vmc_out import encode_frame
+from stylecast.drivers.vmc.osc_packets import encode_bundle, encode_message, osc_string
+from stylecast.drivers.vmc.vmc_out import encode_frame
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
@@ -215,7 +215,7 @@ def single_reason_junk(kind: str, n: int, seed: int = 0) -> tuple[list[bytes], "
     from collections import Counter
 
     from stylecast.daemon.control import ControlServer
-    from stylecast.drivers.vmc_in import VmcParser
+    from stylecast.drivers.vmc.vmc_in import VmcParser
 
     gen = JunkGenerator(vmc_seeds() if kind == "vmc" else control_seeds(("p0",)), seed=seed, kind=kind)
     out: list[bytes] = []
@@ -290,7 +290,7 @@ def vmc_performers_sender(targets, clip_rotations, clip_roots, offsets, duration
     frame index (so the receiving side can tell exactly which frames arrived)."""
     import time
 
-    from stylecast.drivers.vmc_out import VmcSender
+    from stylecast.drivers.vmc.vmc_out import VmcSender
 
     senders = [VmcSender([t]) for t in targets]
     go.wait()
@@ -315,7 +315,7 @@ def vmc_frame_receiver(socks, duration, ready, results) -> None:
     import select
     import time
 
-    from stylecast.drivers.vmc_in import VmcParser
+    from stylecast.drivers.vmc.vmc_in import VmcParser
 
     ports = [s.getsockname()[1] for s in socks]
     parsers = [VmcParser(f"out{p}") for p in ports]

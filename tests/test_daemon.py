@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip
 from stylecast.motion.footlock import FootLock
@@ -105,7 +105,7 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root):
     """The real path end to end: a Bandai BVH replayed by the daemon (bvh source: read,
     retarget, resample to 60 fps) against `stylecast restyle --live` of the same file, in
     humanoid space at 60 fps (what `restyle` then writes back onto the source rig)."""
-    from stylecast.drivers.bvh_replay import humanoid_motion
+    from stylecast.drivers.bvh.bvh_replay import humanoid_motion
     from stylecast.models.restyler import Restyler
     from stylecast.motion.bvh import read_bvh
     from stylecast.motion.resample import resample
@@ -149,7 +149,7 @@ def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline
                     frame_taps=[lambda f: frames.setdefault(f.performer, []).append(f)], log_status=False)
     daemon.run()
     daemon.close()
-    assert [s.settings.phase for s in daemon.sessions] == [0] * 8 + [5, 5]
+    assert [s.phase for s in daemon.sessions] == [0] * 8 + [5, 5]
     assert daemon.worker.batches < daemon.worker.words
     for k, phase in ((0, 0), (9, 5)):
         live = np.stack([f.rotations for f in frames[f"p{k}"]])

@@ -66,7 +66,7 @@ def test_demo_runs_for_a_duration_and_stops(tmp_path):
 def test_repair_command(tmp_path):
     import numpy as np
 
-    from stylecast.drivers.bvh_recorder import BvhRecorder
+    from stylecast.drivers.bvh.bvh_recorder import BvhRecorder
     from stylecast.motion.humanoid import humanoid_skeleton_default
 
     path = tmp_path / "r.bvh"

@@ -10,12 +10,12 @@ from pythonosc.osc_bundle import OscBundle
 from pythonosc.osc_message import OscMessage
 from pythonosc.osc_message_builder import OscMessageBuilder
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.control import ControlServer
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion import rotations as rot
 
 from .test_daemon import walk_clip
@@ -118,3 +118,52 @@ def test_malformed_and_unknown_control_packets_are_counted_not_fatal():
         assert sum(v for k, v in server.counts.items() if k.startswith("malformed_")) == 3
     finally:
         server.close()
+
+
+def test_crossfade_over_the_socket_changes_the_next_fade_of_every_performer():
+    cfg = DaemonConfig(hop=15, control="127.0.0.1:0", crossfade=0.5)
+    sources = [ReplaySource(walk_clip(600), name, loop=True) for name in ("alice", "bob")]
+    daemon = Daemon(cfg, sources, StandInRestyler(), FakeClock(), log_status=False)
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    port = daemon.control.address[1]
+    try:
+        daemon.start()
+        for _ in range(150):
+            daemon.step()
+        assert [s.blender.mix for s in daemon.sessions] == [1.0, 1.0]
+        client.sendto(osc("/stylecast/crossfade", 2.0), ("127.0.0.1", port))
+        client.sendto(osc("/stylecast/bypass", 1), ("127.0.0.1", port))
+        assert wait_for(lambda: len(daemon.control.commands) == 2)
+        mixes = []
+        for _ in range(130):
+            daemon.step()
+            mixes.append([s.blender.mix for s in daemon.sessions])
+    finally:
+        daemon.close()
+        client.close()
+    mixes = np.array(mixes)
+    # 2 s at 60 fps = 120 frames from restyled to pass-through, for both performers (the
+    # default 0.5 s would have finished after 30 frames).
+    assert np.allclose(mixes[59], 1 - 60 / 120) and np.allclose(mixes[29], 1 - 30 / 120)
+    assert np.all(mixes[118] > 0.008) and np.all(mixes[119] < 1e-9) and np.all(mixes[125] == 0.0)
+    assert daemon.settings.crossfade_frames == 120
+
+
+def test_the_command_table_is_the_one_both_sides_use():
+    from stylecast.daemon.commands import BY_NAME, COMMANDS, parse_command
+
+    assert parse_command("/stylecast/crossfade", "f", (2.0,)) == ("crossfade", 2.0, None)
+    assert parse_command("/stylecast/crossfade", "f", (61.0,)) == (None, "bad_arguments")
+    assert parse_command("/stylecast/intensity", "fs", (0.5, "bob")) == ("intensity", 0.5, "bob")
+    assert parse_command("/stylecast/calibrate", "s", ("bob",)) == ("calibrate", None, "bob")
+    assert parse_command("/stylecast/nope", "", ()) == (None, "unknown_address")
+    assert set(BY_NAME) == {a.rsplit("/", 1)[1] for a in COMMANDS} and all(COMMANDS[c.address] is c for c in BY_NAME.values())
+    frames = []
+    daemon = make_daemon(frames)
+    try:
+        with __import__("pytest").raises(Exception, match="no tracker source to calibrate"):
+            daemon.apply("calibrate", None)
+        with __import__("pytest").raises(Exception, match="unknown control command"):
+            daemon.apply("louder", 1.0)
+    finally:
+        daemon.close()

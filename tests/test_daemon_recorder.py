@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler
-from stylecast.drivers.bvh_recorder import BvhRecorder, repair_bvh
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_recorder import BvhRecorder, repair_bvh
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
@@ -72,11 +72,11 @@ def test_kill_9_while_recording_loses_at_most_a_second_and_repairs(tmp_path):
     script = textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(REPO / 'tests')!r})
-        from stylecast.daemon.clock import RealClock
+        from stylecast.motion.clock import RealClock
         from stylecast.daemon.config import DaemonConfig
         from stylecast.daemon.engine import Daemon
         from stylecast.daemon.restylers import StandInRestyler
-        from stylecast.drivers.bvh_replay import ReplaySource
+        from stylecast.drivers.bvh.bvh_replay import ReplaySource
         from tests.test_daemon import walk_clip
         d = Daemon(DaemonConfig(hop=15, control="off", record={str(path)!r}),
                    [ReplaySource(walk_clip(120), "p0", loop=True)], StandInRestyler(), RealClock(),

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from pythonosc.osc_message_builder import OscMessageBuilder
 
-from stylecast.daemon.clock import RealClock
+from stylecast.motion.clock import RealClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion.humanoid import HUMANOID_BONES
 
 from .test_daemon import walk_clip

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from stylecast.cli import main
-from stylecast.drivers.emulator import Emulator, emulate_trackers, open_sink
-from stylecast.drivers.serial_trackers import PACKET_LEN, FrameDecoder, SerialTrackerSink, encode_packets
-from stylecast.drivers.solver import TrackerSolver, calibrate_known_pose
-from stylecast.drivers.trackers import (SIX_POINT, TEN_POINT, FrameAssembler, TrackerPoses, TrackerRole,
+from stylecast.drivers.cli import open_tracker_sink as open_sink
+from stylecast.drivers.trackers.emulator import Emulator, emulate_trackers
+from stylecast.drivers.serial.serial_trackers import PACKET_LEN, FrameDecoder, SerialTrackerSink, encode_packets
+from stylecast.drivers.trackers.solver import TrackerSolver, calibrate_known_pose
+from stylecast.drivers.trackers.trackers import (SIX_POINT, TEN_POINT, FrameAssembler, TrackerPoses, TrackerRole,
                                         nominal_mount, samples_from_vmc)
 from stylecast.motion import forward_kinematics
 from stylecast.motion import rotations as rot
@@ -243,7 +244,7 @@ def test_corrupted_line_still_solves():
 
 
 def test_emulator_to_vmc_receiver_over_loopback():
-    from stylecast.drivers.vmc_in import VmcReceiver
+    from stylecast.drivers.vmc.vmc_in import VmcReceiver
 
     motion = body_motion(frames=60)
     rec = emulate_trackers(motion, 10)
@@ -269,12 +270,12 @@ def test_pty_to_daemon_to_vmc_out():
     """The whole live path: emulator -> pty -> the daemon's serial:// source (T-pose
     calibration, solver) -> the daemon (identity restyler) -> VMC out over loopback UDP ->
     a VMC receiver. The hips the receiver sees follow the emulated performer."""
-    from stylecast.daemon.clock import FakeClock as DaemonClock
+    from stylecast.motion.clock import FakeClock as DaemonClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
     from stylecast.daemon.restylers import IdentityRestyler
     from stylecast.drivers.sources import open_source
-    from stylecast.drivers.vmc_in import VmcReceiver
+    from stylecast.drivers.vmc.vmc_in import VmcReceiver
 
     motion = body_motion(frames=130, seed=11)
     tpose = np.tile(rot.IDENTITY, (70, len(HUMANOID_BONES), 1))
@@ -319,9 +320,9 @@ def test_pty_to_daemon_to_vmc_out():
 def test_vmc_trackers_to_solver_source():
     """emulate --to vmc:// -> VmcReceiver -> VmcTrackerFeed -> SolvedTrackerSource (T-pose
     calibration) -> 60 Hz humanoid frames that follow the performer."""
-    from stylecast.drivers.solver import SolvedTrackerSource
-    from stylecast.drivers.trackers import VmcTrackerFeed
-    from stylecast.drivers.vmc_in import VmcReceiver
+    from stylecast.drivers.trackers.solver import SolvedTrackerSource
+    from stylecast.drivers.trackers.trackers import VmcTrackerFeed
+    from stylecast.drivers.vmc.vmc_in import VmcReceiver
 
     motion = body_motion(frames=90, seed=13)
     whole = motion.replace(

@@ -20,12 +20,12 @@ import sys
 
 import pytest
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig, build_config
 from stylecast.daemon.control import ControlServer
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler
-from stylecast.drivers.osc_packets import encode_message
+from stylecast.drivers.vmc.osc_packets import encode_message
 from stylecast.drivers.sources import open_source
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/net/udp")
@@ -87,7 +87,7 @@ def test_with_default_options_every_daemon_socket_is_bound_to_loopback():
     cfg.control = f"{host}:0"
 
     # (the vmc:// source idles, so a replay feeds the output)
-    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
 
     from .test_daemon import walk_clip
 
@@ -104,7 +104,7 @@ def test_with_default_options_every_daemon_socket_is_bound_to_loopback():
 
 
 def test_an_address_the_user_names_is_honoured():
-    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
 
     from .test_daemon import walk_clip
 
@@ -180,7 +180,7 @@ def test_the_control_port_replies_only_to_who_asked():
     spoofed request cannot turn the daemon into an amplifier towards a third party beyond
     that bound (and spoofing needs an address on the allow-list)."""
     from stylecast.daemon.engine import STATUS_REPLIES_PER_TICK
-    from stylecast.drivers.bvh_replay import ReplaySource
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
 
     from .test_daemon import walk_clip
 

@@ -31,16 +31,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.daemon.clock import FakeClock, RealClock
+from stylecast.motion.clock import FakeClock, RealClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.inference import InferenceWorker
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.daemon.status import status_line, status_messages
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.drivers.sources import open_source
-from stylecast.drivers.vmc_in import VmcParser
-from stylecast.drivers.vmc_out import encode_frame
+from stylecast.drivers.vmc.vmc_in import VmcParser
+from stylecast.drivers.vmc.vmc_out import encode_frame
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
@@ -352,11 +352,11 @@ def test_kill_9_at_a_known_frame_loses_at_most_a_second_and_stylecast_repair_fix
     script = textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(REPO)!r})
-        from stylecast.daemon.clock import RealClock
+        from stylecast.motion.clock import RealClock
         from stylecast.daemon.config import DaemonConfig
         from stylecast.daemon.engine import Daemon
         from stylecast.daemon.restylers import IdentityRestyler
-        from stylecast.drivers.bvh_replay import ReplaySource
+        from stylecast.drivers.bvh.bvh_replay import ReplaySource
         from tests.test_daemon import walk_clip
         count = [0]
         def tap(frame):

@@ -30,16 +30,16 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from stylecast.daemon.clock import FakeClock
+from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.control import ControlServer, parse_command
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
-from stylecast.drivers.bvh_replay import ReplaySource
-from stylecast.drivers.osc_packets import decode, encode_message
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
+from stylecast.drivers.vmc.osc_packets import decode, encode_message
 from stylecast.drivers.sources import Source, open_source
-from stylecast.drivers.vmc_in import VmcParser
-from stylecast.drivers.vmc_out import encode_frame
+from stylecast.drivers.vmc.vmc_in import VmcParser
+from stylecast.drivers.vmc.vmc_out import encode_frame
 from stylecast.motion.bvh import write_bvh
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
@@ -438,8 +438,8 @@ def _serial_stream(rng, total: int):
     """Random bytes with valid packets, CRC-valid packets the decoder must refuse (role,
     non-finite, non-unit quaternion) and corrupt packets mixed in; returns the stream, the
     valid samples in order and the count of each CRC-valid bad kind."""
-    from stylecast.drivers.serial_trackers import BODY, CRC, SYNC, crc32, encode_packet
-    from stylecast.drivers.trackers import TrackerRole, TrackerSample, TrackerStatus
+    from stylecast.drivers.serial.serial_trackers import BODY, CRC, SYNC, crc32, encode_packet
+    from stylecast.drivers.trackers.trackers import TrackerRole, TrackerSample, TrackerStatus
 
     def raw(role=3, p=(0.0, 0.0, 0.0), q=(0.0, 0.0, 0.0, 1.0), status=1, length=40, version=1):
         body = BODY.pack(7, role, status, 0, *p, *q) + bytes(max(0, length - 40))
@@ -482,7 +482,7 @@ def _serial_stream(rng, total: int):
 
 
 def test_serial_decoder_takes_a_mebibyte_of_random_bytes():
-    from stylecast.drivers.serial_trackers import PACKET_LEN, FrameDecoder
+    from stylecast.drivers.serial.serial_trackers import PACKET_LEN, FrameDecoder
 
     rng = np.random.default_rng(11)
     stream, valid, bad = _serial_stream(rng, 1 << 20)
@@ -505,7 +505,7 @@ def test_serial_decoder_takes_a_mebibyte_of_random_bytes():
 
 
 def test_serial_source_over_a_real_pyserial_port_takes_random_bytes():
-    from stylecast.drivers.serial_trackers import SerialTrackerSource
+    from stylecast.drivers.serial.serial_trackers import SerialTrackerSource
 
     rng = np.random.default_rng(12)
     stream, valid, bad = _serial_stream(rng, 256 << 10)
@@ -531,7 +531,7 @@ def test_the_receiver_thread_delivers_frames_while_a_flood_keeps_its_socket_full
     """Under a sustained flood the socket never empties. The receiver thread must still
     hand over the frames it completes every few hundred datagrams, not only once it has
     drained the socket (which, at flood rate, may be never)."""
-    from stylecast.drivers.vmc_in import VmcReceiver
+    from stylecast.drivers.vmc.vmc_in import VmcReceiver
 
     receiver = VmcReceiver("127.0.0.1", 0, performer_id="p", rcvbuf=1 << 22)
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.drivers.serial_trackers import (BODY, CRC, PACKET_LEN, SYNC, FrameDecoder, SerialTrackerSink,
+from stylecast.drivers.serial.serial_trackers import (BODY, CRC, PACKET_LEN, SYNC, FrameDecoder, SerialTrackerSink,
                                                SerialTrackerSource, crc32, encode_packet, encode_packets,
                                                parse_serial_url)
-from stylecast.drivers.trackers import FrameAssembler, TrackerRole, TrackerSample, TrackerStatus
+from stylecast.drivers.trackers.trackers import FrameAssembler, TrackerRole, TrackerSample, TrackerStatus
 from stylecast.motion.errors import UserError
 
 # The example of docs/SERIAL_FRAMING.md, byte for byte.

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from stylecast.drivers import solver as S
-from stylecast.drivers.emulator import emulate_trackers
-from stylecast.drivers.solver import TrackerSolver, calibrate_known_pose, calibrate_tpose
-from stylecast.drivers.trackers import TrackerRole
+from stylecast.drivers.trackers import solver as S
+from stylecast.drivers.trackers.emulator import emulate_trackers
+from stylecast.drivers.trackers.solver import TrackerSolver, calibrate_known_pose, calibrate_tpose
+from stylecast.drivers.trackers.trackers import TrackerRole
 from stylecast.motion import Clip, forward_kinematics
 from stylecast.motion import rotations as rot
 from stylecast.motion.errors import UserError
@@ -255,7 +255,7 @@ BANDAI_CLIPS = (  # dataset-2 clips: never used while tuning the solver (dataset
 
 @pytest.fixture(scope="module")
 def bandai_motions(bandai_root):
-    from stylecast.drivers.emulator import load_humanoid
+    from stylecast.drivers.trackers.emulator import load_humanoid
 
     out = [load_humanoid(bandai_root / rel) for rel in BANDAI_CLIPS if (bandai_root / rel).is_file()]
     if not out:
@@ -298,7 +298,7 @@ class ListTrackers:
         return out
 
 
-def test_source_calibrates_then_emits_60_hz_whatever_the_tracker_rate():
+def test_source_calibrates_then_emits_at_the_tracker_rate_which_the_session_resamples():
     motion = body_motion(frames=240, seed=12)
     tpose = motion.replace(rotations=np.tile(rot.IDENTITY, (240, len(HUMANOID_BONES), 1)))
     whole = motion.replace(rotations=np.concatenate([tpose.rotations[:70], motion.rotations]),
@@ -315,6 +315,14 @@ def test_source_calibrates_then_emits_60_hz_whatever_the_tracker_rate():
         frames += source.poll(now)
     frames += source.poll(now + 1.0)  # the line goes quiet: the last frame is flushed
     assert source.calibrated and source.skeleton is not None
+    # The source keeps the trackers' own time and rate (device time, 30 Hz) ...
+    assert np.allclose(np.diff([f.timestamp for f in frames]), 1 / 30)
+    assert len(frames) == len(rec) - 31
+    # ... and the daemon's session puts them on the 60 Hz grid.
+    from stylecast.motion.resample import StreamResampler
+
+    resampler = StreamResampler(60.0)
+    frames = [g for f in frames for g in resampler.feed(f)]
     ts = np.array([f.timestamp for f in frames])
     assert np.allclose(np.diff(ts), 1 / 60)
     assert len(frames) == pytest.approx(2 * (len(rec) - 31), abs=2)

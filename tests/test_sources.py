@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stylecast.drivers.bvh_replay import ReplaySource
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.drivers.sources import open_source
 from stylecast.drivers.urls import parse_url
 from stylecast.motion.errors import UserError
@@ -59,21 +59,27 @@ def test_replay_is_paced_by_the_clock_it_is_given():
     np.testing.assert_array_equal(frames[30].rotations, clip.rotations[0])  # wrapped around
 
 
-def test_replay_speed_resamples_the_content_not_the_output_rate():
+def test_replay_speed_changes_the_timeline_not_the_frames():
     clip = walk_clip(121)
     fast = ReplaySource(clip, "p0", speed=2.0)
-    assert fast.num_frames == 61
-    np.testing.assert_allclose(fast.rotations[10], clip.rotations[20], atol=1e-9)
+    assert fast.num_frames == 121  # the replay never resamples: the session does
+    fast.start(0.0)
+    frames = fast.poll(0.5)  # half a second at speed 2 is a second of the clip's timeline
+    assert len(frames) == int(clip.fps) + 1
+    assert np.diff([f.timestamp for f in frames]) == pytest.approx(1 / (2 * clip.fps))
+    np.testing.assert_array_equal(frames[20].rotations, clip.rotations[20])
     with pytest.raises(UserError, match="speed"):
         ReplaySource(clip, "p0", speed=0.0)
 
 
 @pytest.mark.skipif(not WALK.exists(), reason="shared Bandai data not present")
-def test_a_bandai_clip_replays_as_a_60_fps_humanoid_stream():
+def test_a_bandai_clip_replays_as_a_humanoid_stream_at_its_own_rate():
     pytest.importorskip("stylecast.motion.bvh")
     src = open_source(f"bvh://{WALK}?loop=1&name=alice", "p0")
     assert src.performer == "alice" and src.skeleton.names == HUMANOID_BONES and src.loop
-    assert src.num_frames == pytest.approx(273 * 2 - 1, abs=1)  # 30 fps -> 60 fps
+    assert src.num_frames == 273  # at the clip's own 30 fps: the session resamples to 60
+    src.start(0.0)
+    assert [f.timestamp for f in src.poll(0.1)] == pytest.approx([0.0, 1 / 30, 2 / 30, 3 / 30])
     src.start(0.0)
     frame = src.poll(0.0)[0]
     assert frame.rotations.shape == (len(HUMANOID_BONES), 4) and 50 < frame.root_position[1] < 150

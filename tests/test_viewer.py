@@ -15,8 +15,8 @@ from scipy.spatial.transform import Rotation
 
 pytest.importorskip("moderngl")
 
-from stylecast.drivers.osc_packets import encode_bundle, encode_message  # noqa: E402
-from stylecast.drivers.vmc_out import VmcSender, encode_frame  # noqa: E402
+from stylecast.drivers.vmc.osc_packets import encode_bundle, encode_message  # noqa: E402
+from stylecast.drivers.vmc.vmc_out import VmcSender, encode_frame  # noqa: E402
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default  # noqa: E402
 from stylecast.viewer.app import Viewer  # noqa: E402
 from stylecast.viewer.camera import OrbitCamera  # noqa: E402

@@ -1,4 +1,4 @@
-"""drivers/vmc_out.py: the fast VMC encoder against python-osc, the UDP fan-out, oscdump."""
+"""drivers/vmc/vmc_out.py: the fast VMC encoder against python-osc, the UDP fan-out, oscdump."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from pythonosc.osc_bundle import OscBundle
 from pythonosc.osc_message import OscMessage
 from scipy.spatial.transform import Rotation
 
-from stylecast.drivers.osc_packets import decode, encode_message
-from stylecast.drivers.vmc_out import (FrameEncoder, VmcSender, encode_frame, encode_frame_reference,
+from stylecast.drivers.vmc.osc_packets import decode, encode_message
+from stylecast.drivers.vmc.vmc_out import (FrameEncoder, VmcSender, encode_frame, encode_frame_reference,
                                        encode_trackers)
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
@@ -135,7 +135,7 @@ def test_encoder_is_reusable_and_independent_of_input_arrays():
 
 
 def test_trackers_are_encoded_and_bundled():
-    from stylecast.drivers.vmc_in import TrackerSample
+    from stylecast.drivers.vmc.vmc_in import TrackerSample
 
     samples = [TrackerSample("tra", f"T{i}", np.array([10.0 * i, 100.0, 0.0]), np.array([0, 0, 0, 1.0]))
                for i in range(30)]

@@ -21,7 +21,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from stylecast.drivers.osc_packets import decode, encode_message
+from stylecast.drivers.vmc.osc_packets import decode, encode_message
 from stylecast.motion.errors import UserError
 
 REQUEST = encode_message("/stylecast/status")

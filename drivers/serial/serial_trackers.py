@@ -18,8 +18,6 @@ import logging
 import math
 import os
 import struct
-import time
-import urllib.parse
 import zlib
 from collections import Counter
 from dataclasses import dataclass, field
@@ -27,9 +25,10 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from stylecast.motion.clock import RealClock
 from stylecast.motion.errors import UserError
 
-from .trackers import TrackerRole, TrackerSample, TrackerStatus
+from stylecast.drivers.trackers.trackers import TrackerRole, TrackerSample, TrackerStatus
 
 log = logging.getLogger("stylecast.drivers.serial")
 
@@ -161,32 +160,32 @@ def _parse_body(buf: bytearray) -> tuple[TrackerSample | None, str]:
 
 
 def parse_serial_url(url: str) -> tuple[str, dict]:
-    """``serial:///dev/ttyUSB0?baud=921600`` -> ("/dev/ttyUSB0", {"baudrate": 921600});
-    any other pyserial URL (``loop://``, ``socket://host:port``, ``spy://...``, ``rfc2217://``)
+    """``serial:///dev/ttyUSB0?baud=921600`` -> ("/dev/ttyUSB0", {"baudrate": 921600}), through
+    the one URL grammar (``urls.parse_url``: duplicate and unknown options refused); any
+    other pyserial URL (``loop://``, ``socket://host:port``, ``spy://...``, ``rfc2217://``)
     or a bare device path is passed to ``serial.serial_for_url`` unchanged."""
+    from stylecast.drivers.urls import parse_url
+
     if not isinstance(url, str) or not url.strip():
         raise UserError("empty serial URL; give a device such as serial:///dev/ttyUSB0?baud=921600")
     url = url.strip()
     if not url.lower().startswith("serial:"):
         return url, {"baudrate": DEFAULT_BAUD}
-    parts = urllib.parse.urlsplit(url)
-    device = (parts.netloc + parts.path) if parts.netloc else parts.path
+    parsed = parse_url(url)
+    device = serial_device(parsed)
+    baud = parsed.take({"baud": (int, DEFAULT_BAUD)})["baud"]
+    if baud <= 0:
+        raise UserError(f"serial URL {url!r} has baud={baud}; give a positive integer such as baud=921600")
+    return device, {"baudrate": baud}
+
+
+def serial_device(url) -> str:
+    """The device of a parsed ``serial://`` URL, as written (``serial:///dev/ttyUSB0``,
+    ``serial://COM3``)."""
+    device = (url.netloc + url.path) if url.netloc else url.path
     if not device:
-        raise UserError(f"serial URL {url!r} names no device; write it as serial:///dev/ttyUSB0?baud=921600")
-    options = {"baudrate": DEFAULT_BAUD}
-    for key, values in urllib.parse.parse_qs(parts.query, keep_blank_values=True).items():
-        value = values[-1]
-        if key in ("baud", "baudrate"):
-            try:
-                baud = int(value)
-            except ValueError:
-                baud = 0
-            if baud <= 0:
-                raise UserError(f"serial URL {url!r} has baud={value!r}; give a positive integer such as baud=921600")
-            options["baudrate"] = baud
-        else:
-            raise UserError(f"serial URL {url!r} has unknown option {key!r}; the only option is baud=N")
-    return device, options
+        raise UserError(f"serial URL {url.text!r} names no device; write it as serial:///dev/ttyUSB0?baud=921600")
+    return device
 
 
 def _make_port(url: str):
@@ -199,17 +198,6 @@ def _make_port(url: str):
     except (ValueError, serial.SerialException) as exc:
         raise UserError(f"cannot use serial URL {url!r} ({exc}); give serial:///dev/DEVICE?baud=N or a "
                         f"pyserial URL such as loop://") from None
-
-
-class MonotonicClock:
-    """The real clock; tests inject an object with the same two methods."""
-
-    def now(self) -> float:
-        return time.monotonic()
-
-    def sleep(self, dt: float) -> None:
-        if dt > 0:
-            time.sleep(dt)
 
 
 @dataclass
@@ -228,7 +216,7 @@ class _Link:
     def __init__(self, url: str, clock=None, backoff_initial: float = 0.1, backoff_max: float = 5.0,
                  opener: Callable[[str], object] = _make_port):
         self.url = url
-        self.clock = clock or MonotonicClock()
+        self.clock = clock or RealClock()
         self.backoff_initial = backoff_initial
         self.backoff_max = backoff_max
         self.stats = LinkStats()
@@ -436,3 +424,15 @@ def _write_nonblocking(port, data: bytes) -> int:
         return os.write(fd, data)
     except BlockingIOError:
         return 0
+
+
+# ------------------------------------------------------------------ the daemon's serial:// source
+
+def open_source(url, performer: str):
+    """The daemon's ``serial://`` factory (``drivers.sources``):
+    ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=1&blend=0.3``."""
+    from stylecast.drivers.trackers.solver import TRACKER_OPTIONS, solved_source
+
+    opts = url.take({"baud": (int, DEFAULT_BAUD), **TRACKER_OPTIONS})
+    trackers = SerialTrackerSource(f"serial://{serial_device(url)}?baud={opts['baud']}")
+    return solved_source(url, trackers, performer, opts)

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from stylecast.motion import rotations as rot
+from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.errors import UserError
 from stylecast.motion.skeleton import Skeleton
 
@@ -73,7 +74,7 @@ def format_frame(root_position: np.ndarray, rotations: np.ndarray, order: list[i
 class BvhRecorder:
     """Appends humanoid frames to a BVH file from a writer thread."""
 
-    def __init__(self, path: str | Path, skeleton: Skeleton, fps: float = 60.0):
+    def __init__(self, path: str | Path, skeleton: Skeleton, fps: float = OUTPUT_FPS):
         self.path = Path(path)
         self.frames = 0
         try:

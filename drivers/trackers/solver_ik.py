@@ -33,9 +33,9 @@ import numpy as np
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_PARENTS
 
-from .solver_body import HELD_POLE_HINT_CM, LIMBS, N_BONES, POLE_HINT_CM, SPINE, SPINE_WEIGHTS, B, R
-from .solver_calibration import Calibration
-from .solver_math import (ARRAY, SCALAR, add, aim, align, frame, local_rotations, place, qmul, qmul_conj, rotate,
+from stylecast.drivers.trackers.solver_body import HELD_POLE_HINT_CM, LIMBS, N_BONES, POLE_HINT_CM, SPINE, SPINE_WEIGHTS, B, R
+from stylecast.drivers.trackers.solver_calibration import Calibration
+from stylecast.drivers.trackers.solver_math import (ARRAY, SCALAR, add, aim, align, frame, local_rotations, place, qmul, qmul_conj, rotate,
                           scale, sub, swing, two_bone)
 
 WAIST, HMD = int(R.WAIST), int(R.HMD)

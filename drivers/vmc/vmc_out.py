@@ -49,8 +49,9 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.unity import position_to_unity, rotation_to_unity
 
-from .osc_packets import (DEFAULT_MAX_DATAGRAM, IMMEDIATE, check_port, encode_message,
-                          group_for_bundles, osc_string, pack_datagrams, parse_vmc_url)
+from stylecast.drivers.vmc.osc_packets import (DEFAULT_MAX_DATAGRAM, IMMEDIATE, check_port, encode_message,
+                          group_for_bundles, osc_string, pack_datagrams)
+from stylecast.drivers.urls import parse_vmc_url
 
 ROOT_ADDRESS = "/VMC/Ext/Root/Pos"
 BONE_ADDRESS = "/VMC/Ext/Bone/Pos"
@@ -381,3 +382,82 @@ class VmcSender:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class VmcOut:
+    """One performer's VMC stream to one or more receivers: the daemon's ``vmc://`` sink.
+
+    A ``tap`` callable, when given, sees every frame's datagrams before they are sent
+    (tests capture the exact bytes for the determinism check)."""
+
+    def __init__(self, targets: list[tuple[str, int]], bundled: bool = True, tap=None):
+        self.sender = VmcSender(targets, bundled=bundled)
+        self.tap = tap
+
+    def send(self, root_position: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, time: float) -> None:
+        s = self.sender
+        try:
+            datagrams = s.encoder.encode(root_position, rotations, offsets, time)
+        except ValueError:
+            s.frames_rejected += 1  # non-finite pose: never put NaN on the wire
+            return
+        s.frames_sent += 1
+        if self.tap is not None:
+            self.tap(datagrams)
+        s.send_datagrams(datagrams)
+
+    def counters(self) -> dict:
+        return self.sender.counters()
+
+    def close(self) -> None:
+        self.sender.close()
+
+
+def open_sink(url, targets: list[tuple[str, int]], bundled: bool = True, tap=None) -> VmcOut:
+    """The sink factory registered for ``vmc://`` (see ``sinks.py``); ``?bundled=0|1``
+    overrides the daemon's --unbundled for this receiver."""
+    opts = url.take({"bundled": (bool, None)})
+    return VmcOut(targets, bundled if opts["bundled"] is None else opts["bundled"], tap)
+
+
+# ------------------------------------------------ trackers as VMC (stylecast emulate --to vmc://)
+
+class VmcTrackerSink:
+    """Tracker samples as VMC tracker messages (``vmc://HOST:PORT``), one bundle per frame.
+
+    Lost trackers are simply not sent (VMC has no status flag for them)."""
+
+    def __init__(self, url: str):
+        self.sender = VmcSender.from_urls([url])
+        self.frames = 0
+
+    def send(self, samples: list) -> None:  # trackers.TrackerSample (vmc/ never imports trackers/ at run time)
+        msgs = [_VmcTracker(s) for s in samples if s.valid]
+        if not samples:
+            return
+        try:
+            datagrams = encode_trackers(msgs, time=samples[0].timestamp)
+        except ValueError:  # non-finite pose: never put NaN on the wire
+            return
+        self.sender.send_datagrams(datagrams)
+        self.frames += 1
+
+    @property
+    def stats(self) -> dict:
+        return self.sender.counters()
+
+    def close(self) -> None:
+        self.sender.close()
+
+
+class _VmcTracker:
+    """The shape ``vmc_out.encode_trackers`` reads (kind, serial, position, rotation, local)."""
+
+    __slots__ = ("kind", "serial", "position", "rotation", "local")
+
+    def __init__(self, s: TrackerSample):
+        self.kind = s.role.vmc_kind.lower()
+        self.serial = s.role.serial
+        self.position = s.position
+        self.rotation = s.orientation
+        self.local = False

@@ -14,7 +14,7 @@ import numpy as np
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_BONES, HUMANOID_PARENTS
 
-from .trackers import ALL_ROLES, TrackerRole
+from stylecast.drivers.trackers.trackers import ALL_ROLES, TrackerRole
 
 B = {name: i for i, name in enumerate(HUMANOID_BONES)}
 R = TrackerRole

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Sequence
-from urllib.parse import parse_qsl, urlsplit
 
 from stylecast.motion.errors import UserError
 
@@ -299,31 +298,6 @@ def decode(datagram: bytes, on_error: Callable[[str], None]) -> tuple[bool, list
             on_error("not_osc")
         pos += size
     return True, messages
-
-
-# ----------------------------------------------------------------------------- vmc:// URLs
-
-def parse_vmc_url(url: str, allowed_options: Sequence[str] = (),
-                  default_host: str = "127.0.0.1") -> tuple[str, int, dict[str, str]]:
-    """``vmc://HOST:PORT?opt=value`` -> (host, port, options); UserError on anything wrong."""
-    try:
-        parts = urlsplit(url)
-        port = parts.port
-    except ValueError:
-        raise UserError(f"bad VMC address {url!r}: the port must be a number from 0 to 65535, "
-                        f"as in vmc://127.0.0.1:39539") from None
-    if parts.scheme != "vmc" or parts.path not in ("", "/"):
-        raise UserError(f"bad VMC address {url!r}: write it as vmc://HOST:PORT, "
-                        f"for example vmc://127.0.0.1:39539")
-    if port is None:
-        raise UserError(f"VMC address {url!r} has no port: add one, as in vmc://127.0.0.1:39539")
-    options = dict(parse_qsl(parts.query, keep_blank_values=True))
-    unknown = sorted(set(options) - set(allowed_options))
-    if unknown:
-        allowed = ", ".join(allowed_options) or "none"
-        raise UserError(f"VMC address {url!r} has unknown option(s) {', '.join(unknown)}; "
-                        f"allowed options: {allowed}")
-    return parts.hostname or default_host, port, options
 
 
 def check_port(port: object, what: str) -> int:

@@ -222,19 +222,49 @@ def nominal_mount(role: TrackerRole, skeleton) -> tuple[np.ndarray, np.ndarray]:
     return pos, Rotation.from_rotvec(np.radians(rotvec)).as_quat()
 
 
-def samples_from_vmc(trackers, timestamp: float) -> list[TrackerSample]:
-    """VMC tracker messages (``vmc_in.TrackerSample``: kind, serial, position, rotation)
-    -> TrackerSamples, the role read from the serial string (``TrackerRole.parse``: the
-    emulator's "stylecast-left-foot", or a plain role name such as "waist"). Trackers whose
-    serial names no role are left out; the tracker id is the role code."""
-    out = []
-    for t in trackers:
-        role = TrackerRole.parse(str(t.serial))
+def parse_role_map(url_text: str, raw: str) -> dict[str, "TrackerRole"]:
+    """``roles=LHR-1A2B3C:left-foot,LHR-4D5E6F:waist`` -> {serial: role}: which body part
+    each tracker (by its serial) is strapped to. One sentence on a bad entry."""
+    from stylecast.motion.errors import UserError
+
+    out: dict[str, TrackerRole] = {}
+    for entry in filter(None, (e.strip() for e in raw.split(","))):
+        serial, sep, name = entry.rpartition(":")
+        role = TrackerRole.parse(name) if sep and serial else None
         if role is None:
-            continue
-        out.append(TrackerSample(int(role), role, float(timestamp), np.asarray(t.position, float),
-                                 np.asarray(t.rotation, float)))
+            known = ", ".join(r.name.lower().replace("_", "-") for r in TrackerRole)
+            raise UserError(f"{url_text}: roles entry {entry!r} must be SERIAL:ROLE with ROLE one of {known}")
+        if serial in out:
+            raise UserError(f"{url_text}: tracker {serial} is given two roles; give each serial once")
+        out[serial] = role
     return out
+
+
+def vmc_tracker_role(kind: str, serial: str, role_map: dict | None = None) -> "TrackerRole | None":
+    """The body role of a VMC tracker: the user's map first, then a serial that names a
+    role (the emulator's "stylecast-left-foot", or "waist"), then the headset by its
+    address (/VMC/Ext/Hmd/Pos). Controllers and trackers with a bare serial need the map."""
+    if role_map and serial in role_map:
+        return role_map[serial]
+    role = TrackerRole.parse(serial)
+    if role is None and kind == "hmd":
+        role = TrackerRole.HMD
+    return role
+
+
+def samples_from_vmc(trackers, timestamp: float, role_map: dict | None = None) -> list[TrackerSample]:
+    """VMC tracker messages (``vmc_in.TrackerSample``: kind, serial, position, rotation)
+    -> TrackerSamples, the role from ``vmc_tracker_role``. Trackers with no role are left
+    out; the tracker id is the role code. When a sender sends a tracker both avatar-scaled
+    and raw (/Local), the avatar-scaled one is used."""
+    chosen: dict[TrackerRole, object] = {}
+    for t in trackers:
+        role = vmc_tracker_role(t.kind, str(t.serial), role_map)
+        if role is None or (role in chosen and not getattr(chosen[role], "local", False)):
+            continue
+        chosen[role] = t
+    return [TrackerSample(int(role), role, float(timestamp), np.asarray(t.position, float), np.asarray(t.rotation, float))
+            for role, t in chosen.items()]
 
 
 class VmcTrackerFeed:

@@ -21,9 +21,9 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, HUMANOID_PARENTS, humanoid_skeleton_default
 from stylecast.motion.skeleton import Skeleton
 
-from .solver_body import LIMBS, N_ROLES, B, R, _as_arrays, _chain, _fk_positions, _Limb, _local_to_world
-from .solver_math import _cross, _qmean, _unit
-from .trackers import MOUNT_CHILD, NOMINAL_MOUNTS, TEN_POINT, TrackerRole, nominal_mount
+from stylecast.drivers.trackers.solver_body import LIMBS, N_ROLES, B, R, _as_arrays, _chain, _fk_positions, _Limb, _local_to_world
+from stylecast.drivers.trackers.solver_math import _cross, _qmean, _unit
+from stylecast.drivers.trackers.trackers import MOUNT_CHILD, NOMINAL_MOUNTS, TEN_POINT, TrackerRole, nominal_mount
 
 
 @dataclass(frozen=True, eq=False)

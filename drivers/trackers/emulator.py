@@ -23,11 +23,11 @@ from scipy.spatial.transform import Rotation
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip, forward_kinematics
+from stylecast.motion.clock import RealClock
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES
 
-from .serial_trackers import MonotonicClock
-from .trackers import (ALL_ROLES, TrackerPoses, TrackerRole, TrackerSample, TrackerStatus, nominal_mount,
+from stylecast.drivers.trackers.trackers import (ALL_ROLES, TrackerPoses, TrackerRole, TrackerSample, TrackerStatus, nominal_mount,
                        roles_for_points)
 
 N_ROLES = len(ALL_ROLES)
@@ -75,6 +75,20 @@ def load_humanoid(path: str | Path) -> Clip:
     if tuple(clip.skeleton.names) == HUMANOID_BONES:
         return clip
     return Retarget.for_clip(clip).to_humanoid(clip)
+
+
+def with_tpose(motion: Clip, seconds: float) -> Clip:
+    """``motion`` preceded by ``seconds`` of T-pose at its first root position: what a
+    performer does before a take so a T-pose calibration (``calibrate=tpose``) can run."""
+    if not 0.0 <= seconds <= 60.0:
+        raise UserError(f"--tpose {seconds} is out of range; give seconds between 0 and 60")
+    n = int(round(seconds * motion.fps))
+    if n == 0:
+        return motion
+    J = len(motion.skeleton)
+    return motion.replace(rotations=np.concatenate([np.tile(rot.IDENTITY, (n, J, 1)), motion.rotations]),
+                          root_positions=np.concatenate([np.tile(motion.root_positions[:1], (n, 1)),
+                                                         motion.root_positions]))
 
 
 def emulate_trackers(motion: Clip, points: int = 10, *, noise_mm: float = 0.0, rot_noise_deg: float = 0.0,
@@ -158,75 +172,12 @@ def _dropouts(rng, T: int, n: int, rate: float, burst: float) -> np.ndarray:
 # ------------------------------------------------------------------ sinks and pacing
 
 
-class VmcTrackerSink:
-    """Tracker samples as VMC tracker messages (``vmc://HOST:PORT``), one bundle per frame.
-
-    Lost trackers are simply not sent (VMC has no status flag for them)."""
-
-    def __init__(self, url: str):
-        from .vmc_out import VmcSender
-
-        self.sender = VmcSender.from_urls([url])
-        self.frames = 0
-
-    def send(self, samples: list[TrackerSample]) -> None:
-        from .vmc_out import encode_trackers
-
-        msgs = [_VmcTracker(s) for s in samples if s.valid]
-        if not samples:
-            return
-        try:
-            datagrams = encode_trackers(msgs, time=samples[0].timestamp)
-        except ValueError:  # non-finite pose: never put NaN on the wire
-            return
-        self.sender.send_datagrams(datagrams)
-        self.frames += 1
-
-    @property
-    def stats(self) -> dict:
-        return self.sender.counters()
-
-    def close(self) -> None:
-        self.sender.close()
-
-
-class _VmcTracker:
-    """The shape ``vmc_out.encode_trackers`` reads (kind, serial, position, rotation, local)."""
-
-    __slots__ = ("kind", "serial", "position", "rotation", "local")
-
-    def __init__(self, s: TrackerSample):
-        self.kind = s.role.vmc_kind.lower()
-        self.serial = s.role.serial
-        self.position = s.position
-        self.rotation = s.orientation
-        self.local = False
-
-
-def open_sink(url: str, clock=None):
-    """``serial://...`` or any pyserial URL -> SerialTrackerSink; ``vmc://HOST:PORT`` -> VmcTrackerSink."""
-    text = str(url).strip()
-    if text.lower().startswith("vmc://"):
-        return VmcTrackerSink(text)
-    if "://" not in text and not text.startswith("/"):
-        raise UserError(f"--to {text!r} is not an output; give serial:///dev/pts/N?baud=921600 or vmc://HOST:PORT")
-    from .serial_trackers import SerialTrackerSink
-
-    sink = SerialTrackerSink(text, clock=clock)
-    if not sink.connected:  # at start a missing device is a typo, not an unplugged cable
-        problem = sink.stats.last_error
-        sink.close()
-        raise UserError(f"cannot open serial output {text} ({problem}); check the device path "
-                        f"(for a pseudo-terminal: the /dev/pts/N its other end printed)")
-    return sink
-
-
 class Emulator:
     """Plays a TrackerRecording into a sink in (scaled) real time on an injected clock."""
 
     def __init__(self, recording: TrackerRecording, clock=None):
         self.recording = recording
-        self.clock = clock or MonotonicClock()
+        self.clock = clock or RealClock()
         self.frames_sent = 0
 
     def run(self, sink, *, loop: bool = False, max_frames: int | None = None) -> int:

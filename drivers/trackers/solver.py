@@ -43,16 +43,17 @@ import numpy as np
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip, PoseFrame
+from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.errors import UserError
 from stylecast.motion.skeleton import Skeleton
 
-from .solver_body import DEFAULT_BLEND_TIME, N_ROLES, R, _as_arrays
-from .solver_calibration import Calibration, calibrate_known_pose, calibrate_tpose  # noqa: F401 (public API)
-from .solver_hold import _HoldBlend
-from .solver_ik import BonePoses, IKTables, solve_ik
-from .solver_math import _align, _cross, _swing, _two_bone, _unit  # noqa: F401 (tests/test_solver.py checks them)
-from .sources import Source
-from .trackers import TrackerPoses
+from stylecast.drivers.trackers.solver_body import DEFAULT_BLEND_TIME, N_ROLES, R, _as_arrays
+from stylecast.drivers.trackers.solver_calibration import Calibration, calibrate_known_pose, calibrate_tpose  # noqa: F401 (public API)
+from stylecast.drivers.trackers.solver_hold import _HoldBlend
+from stylecast.drivers.trackers.solver_ik import BonePoses, IKTables, solve_ik
+from stylecast.drivers.trackers.solver_math import _align, _cross, _swing, _two_bone, _unit  # noqa: F401 (tests/test_solver.py checks them)
+from stylecast.drivers.sources import Source
+from stylecast.drivers.trackers.trackers import TrackerPoses
 
 
 class TrackerSolver:
@@ -112,32 +113,28 @@ class TrackerSolver:
         """A recording of tracker frames -> a humanoid Clip (frame rate from the timestamps)."""
         ts, P, Q, V = _as_arrays(frames)
         root, local = self.solve_batch(ts, P, Q, V)
-        fps = (len(ts) - 1) / (ts[-1] - ts[0]) if len(ts) > 1 and ts[-1] > ts[0] else 60.0
+        fps = (len(ts) - 1) / (ts[-1] - ts[0]) if len(ts) > 1 and ts[-1] > ts[0] else OUTPUT_FPS
         return Clip(self.skeleton, local, root, fps)
 
 
 class SolvedTrackerSource(Source):
     """A daemon source (``drivers.sources.Source``) that solves tracker samples
-    into humanoid pose frames: ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=1``.
+    into humanoid pose frames: ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=tpose``,
+    or the trackers of a ``vmc://`` source.
 
     The first ``calibrate`` seconds of tracker frames are the T-pose calibration (the
     performer stands in a T-pose when the source starts); frames are solved from then on.
     Tracker frames are grouped by device timestamp (``FrameAssembler``); a frame is
     complete when the next one starts or when no sample has come for ``flush_after``
-    seconds. Device time is mapped onto the daemon's clock with a fixed offset taken at
-    the first frame, and the solved poses are resampled onto a 60 Hz grid (the daemon's
-    rate, whatever the trackers' rate): each grid time between two solved frames gets
-    their interpolation (slerp), which costs at most one tracker frame of latency; across
-    a gap longer than ``max_gap`` the pose is not interpolated. Never raises from ``poll``.
+    seconds. Solved frames keep the trackers' device time and rate (the source
+    contract): the daemon's session maps them onto its clock and resamples them to 60 Hz.
+    Never raises from ``poll``.
     """
-
-    fps = 60.0
-    max_gap = 0.25
 
     def __init__(self, trackers, performer: str, points: int = 10, calibrate_seconds: float = 1.0,
                  blend_time: float = DEFAULT_BLEND_TIME, calibration: Calibration | None = None,
                  flush_after: float = 0.02):
-        from .trackers import FrameAssembler, roles_for_points
+        from stylecast.drivers.trackers.trackers import FrameAssembler, roles_for_points
 
         self.trackers = trackers
         self.performer = performer
@@ -149,10 +146,7 @@ class SolvedTrackerSource(Source):
         self.solver = None if calibration is None else TrackerSolver(calibration, performer, blend_time)
         self.skeleton = None if calibration is None else calibration.skeleton
         self._calibration_frames: list[TrackerPoses] = []
-        self._offset: float | None = None
         self._last_arrival = -np.inf
-        self._prev: PoseFrame | None = None  # the last solved frame (daemon time)
-        self._next_tick: float | None = None  # the next 60 Hz grid time to emit
         self.frames_solved = 0
         self.solve_errors = 0
         self.calibration_failures = 0
@@ -174,10 +168,8 @@ class SolvedTrackerSource(Source):
             last = self.assembler.flush()
             if last is not None:
                 frames.append(last)
-        out, live = [], []
+        live = []
         for f in frames:
-            if self._offset is None:
-                self._offset = now - f.timestamp
             if self.solver is None:
                 self._calibrate(f)
                 continue
@@ -189,31 +181,11 @@ class SolvedTrackerSource(Source):
             if self.solve_errors == 1:
                 import logging
 
-                logging.getLogger("stylecast.drivers.solver").exception("%s: solver failed", self.performer)
+                logging.getLogger("stylecast.drivers.trackers.solver").exception("%s: solver failed", self.performer)
             self.last_problem = f"solver failed: {exc}"
             solved = []
-        for pf in solved:
-            self.frames_solved += 1
-            out += self._resample(PoseFrame(self.performer, pf.timestamp + self._offset, pf.root_position,
-                                            pf.rotations))
-        return out
-
-    def _resample(self, cur: PoseFrame) -> list[PoseFrame]:
-        """60 Hz grid frames up to ``cur``'s time, interpolated from the previous solve."""
-        prev, self._prev = self._prev, cur
-        step = 1.0 / self.fps
-        if prev is None or self._next_tick is None or cur.timestamp - prev.timestamp > self.max_gap:
-            self._next_tick = cur.timestamp + step
-            return [cur]
-        out = []
-        span = cur.timestamp - prev.timestamp
-        while self._next_tick <= cur.timestamp + 1e-4:  # (device clocks tick in µs)
-            a = 1.0 if span <= 0 else (self._next_tick - prev.timestamp) / span
-            out.append(PoseFrame(self.performer, self._next_tick,
-                                 prev.root_position + a * (cur.root_position - prev.root_position),
-                                 rot.slerp(prev.rotations, cur.rotations, a)))
-            self._next_tick += step
-        return out
+        self.frames_solved += len(solved)
+        return solved
 
     def _calibrate(self, frame: TrackerPoses) -> None:
         import logging
@@ -227,12 +199,19 @@ class SolvedTrackerSource(Source):
         except UserError as exc:
             self.calibration_failures += 1
             self.last_problem = str(exc)
-            logging.getLogger("stylecast.drivers.solver").warning("%s: calibration failed (%s); trying again",
+            logging.getLogger("stylecast.drivers.trackers.solver").warning("%s: calibration failed (%s); trying again",
                                                                  self.performer, exc)
             self._calibration_frames = []
             return
         self.solver = TrackerSolver(cal, self.performer, self.blend_time)
         self.skeleton = cal.skeleton
+        self._calibration_frames = []
+
+    def calibrate(self) -> None:
+        """Calibrate again on the next ``calibrate_seconds`` of frames (the performer
+        stands in a T-pose): ``/stylecast/calibrate``. Until then nothing is solved and
+        the daemon holds the last pose; the skeleton changes when calibration ends."""
+        self.solver = None
         self._calibration_frames = []
 
     @property
@@ -262,19 +241,26 @@ class SolvedTrackerSource(Source):
             close()
 
 
-def open_source(url, performer: str) -> SolvedTrackerSource:
-    """The daemon's ``serial://`` factory (``drivers.sources``):
-    ``serial:///dev/ttyUSB0?baud=921600&points=10&calibrate=1&blend=0.3``."""
-    from .serial_trackers import DEFAULT_BAUD, SerialTrackerSource
+# The options every tracker source takes (serial:// and vmc:// with trackers), one spec.
+TRACKER_OPTIONS = {"points": (int, 10), "calibrate": (str, "tpose"), "blend": (float, DEFAULT_BLEND_TIME)}
+TPOSE_SECONDS = 1.0  # calibrate=tpose: the first second of frames, standing in a T-pose
 
-    opts = url.take({"baud": (int, DEFAULT_BAUD), "points": (int, 10), "calibrate": (float, 1.0),
-                     "blend": (float, DEFAULT_BLEND_TIME)})
-    device = (url.host + url.path) if url.host else url.path
-    if not device:
-        raise UserError(f"{url.text}: give a device, as in serial:///dev/ttyUSB0?baud=921600")
-    if not 0.1 <= opts["calibrate"] <= 60:
-        raise UserError(f"{url.text}: calibrate={opts['calibrate']} must be between 0.1 and 60 seconds")
+
+def calibration_seconds(url, raw: str) -> float:
+    """``calibrate=tpose`` (one second of T-pose) or ``calibrate=SECONDS`` of T-pose."""
+    if raw.strip().lower() == "tpose":
+        return TPOSE_SECONDS
+    try:
+        seconds = float(raw)
+    except ValueError:
+        seconds = float("nan")
+    if not 0.1 <= seconds <= 60:
+        raise UserError(f"{url.text}: calibrate={raw} must be tpose or a number of seconds between 0.1 and 60")
+    return seconds
+
+
+def solved_source(url, trackers, performer: str, opts: dict) -> "SolvedTrackerSource":
     if not 0.0 <= opts["blend"] <= 5:
         raise UserError(f"{url.text}: blend={opts['blend']} must be between 0 and 5 seconds")
-    trackers = SerialTrackerSource(f"serial://{device}?baud={opts['baud']}")
-    return SolvedTrackerSource(trackers, performer, opts["points"], opts["calibrate"], opts["blend"])
+    return SolvedTrackerSource(trackers, performer, opts["points"], calibration_seconds(url, opts["calibrate"]),
+                               opts["blend"])

@@ -75,10 +75,11 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.unity import (position_from_unity, position_to_unity, rotation_from_unity)
 
-from .osc_packets import check_port, decode, parse_vmc_url
+from stylecast.drivers.vmc.osc_packets import check_port, decode
+from stylecast.drivers.urls import parse_vmc_url
 
 if TYPE_CHECKING:
-    from .urls import EndpointUrl
+    from stylecast.drivers.urls import EndpointUrl
 
 _BONE_INDEX = {name: j for j, name in enumerate(HUMANOID_BONES)}
 _POSE_TAGS = "sfffffff"
@@ -437,45 +438,150 @@ class VmcReceiver:
         self.close()
 
 
+INPUT_MODES = ("auto", "bones", "trackers")
+MAX_TRACKERS_KEPT = 64  # latest sample per tracker, for status and tests
+BONES_PRECEDENCE_S = 0.5  # auto: trackers are solved only after this long without bones
+SKELETON_TOLERANCE_CM = 0.05  # offsets that move less than this are not a new skeleton
+
+
+class _TrackerQueue:
+    """The tracker feed a ``SolvedTrackerSource`` pulls from, filled by ``VmcSource``."""
+
+    def __init__(self) -> None:
+        self.samples: list = []
+
+    def poll(self) -> list:
+        out, self.samples = self.samples, []
+        return out
+
+
 class VmcSource:
     """The daemon's ``vmc://BIND:PORT`` source (``drivers.sources`` interface): one port,
     one performer. Everything arriving on the port is this performer whatever its sender
     address (a restarted sender keeps its identity); run one source per port for several
-    performers. Frames arrive at the sender's rate and are timestamped on the monotonic
-    clock; ``trackers`` holds the latest sample of every tracker seen."""
+    performers.
 
-    fps = 60.0
-    skeleton = None  # the sender's proportions arrive as VmcFrame.offsets, not at open time
+    It accepts what VMC senders send (``input=``):
 
-    def __init__(self, bind: str, port: int, performer: str) -> None:
+    * bones (/VMC/Ext/Root/Pos, /Bone/Pos: a performer such as VirtualMotionCapture,
+      VSeeFace or SlimeVR): each frame is a pose, and the sender's local bone positions
+      become this performer's ``skeleton`` (reported again when they change);
+    * trackers (/VMC/Ext/Hmd/Pos, /Con/Pos, /Tra/Pos and their /Local variants: VIVE
+      trackers relayed by an assistant, or ``stylecast emulate --to vmc://``): they go
+      through the calibrated solver (``solver.SolvedTrackerSource``: T-pose calibration,
+      ``calibrate()`` again on /stylecast/calibrate, a lost tracker held and blended back),
+      and the calibrated proportions become the ``skeleton``;
+    * ``auto`` (default): bones when the sender sends bones, trackers otherwise.
+
+    Trackers find their body role by ``roles=SERIAL:ROLE,...``, else by a serial that
+    names a role, else (the headset) by address.
+    """
+
+    def __init__(self, bind: str, port: int, performer: str, input: str = "auto", solved=None,
+                 role_map: dict | None = None) -> None:
         self.performer = performer
+        self.input = input
+        self.role_map = role_map or {}
         self.receiver = VmcReceiver(bind, port, performer_id=performer)
         self.trackers: dict[tuple[str, str, bool], TrackerSample] = {}
+        self._feed = _TrackerQueue()
+        self.solved = solved  # SolvedTrackerSource over self._feed, or None (bones only)
+        self._bone_skeleton = None
+        self._last_bones = -math.inf
+        self.unmapped_trackers = 0
+
+    @property
+    def skeleton(self):
+        """The performer's proportions as last learnt: from the bones' local positions,
+        or from the tracker calibration while trackers drive the pose."""
+        if self._using_trackers() and self.solved is not None and self.solved.skeleton is not None:
+            return self.solved.skeleton
+        return self._bone_skeleton
+
+    def _using_trackers(self, now: float | None = None) -> bool:
+        if self.input == "trackers":
+            return True
+        if self.input == "bones":
+            return False
+        now = time.monotonic() if now is None else now
+        return now - self._last_bones > BONES_PRECEDENCE_S
 
     def start(self, now: float) -> None:
         self.receiver.start()
+        if self.solved is not None:
+            self.solved.start(now)
 
     def poll(self, now: float) -> list[PoseFrame]:
-        frames = self.receiver.poll()
-        for f in frames:
+        from stylecast.drivers.trackers.trackers import samples_from_vmc
+
+        bones = []
+        for f in self.receiver.poll():
             for t in f.trackers:
-                self.trackers[(t.kind, t.serial, t.local)] = t
-        return [f.pose for f in frames if f.pose is not None]
+                key = (t.kind, t.serial, t.local)
+                if key in self.trackers or len(self.trackers) < MAX_TRACKERS_KEPT:  # bounded: serials are free text
+                    self.trackers[key] = t
+            if f.pose is not None and self.input != "trackers":
+                # Stamped with the sender's own time (/VMC/Ext/T) when it sends one: the
+                # session resamples by it, so receive jitter does not become motion jitter.
+                if f.sender_time is not None:
+                    bones.append(PoseFrame(f.pose.performer, f.sender_time, f.pose.root_position, f.pose.rotations))
+                else:
+                    bones.append(f.pose)
+                self._learn_skeleton(f.offsets)
+            if f.trackers and self.solved is not None:
+                samples = samples_from_vmc(f.trackers, f.sender_time if f.sender_time is not None else f.timestamp,
+                                           self.role_map)
+                self.unmapped_trackers += len({t.serial for t in f.trackers}) - len(samples)
+                self._feed.samples += samples
+        if bones:
+            self._last_bones = time.monotonic()
+        solved = self.solved.poll(now) if self.solved is not None else []
+        return bones if not self._using_trackers() else solved
+
+    def _learn_skeleton(self, offsets: np.ndarray) -> None:
+        known = self._bone_skeleton
+        if known is not None and np.abs(known.offsets - offsets).max() < SKELETON_TOLERANCE_CM:
+            return
+        self._bone_skeleton = humanoid_skeleton_default().with_offsets(offsets)
+
+    def calibrate(self) -> None:
+        if self.solved is None:
+            raise UserError(f"performer {self.performer!r} takes bones only (input=bones); there are no "
+                            f"trackers to calibrate")
+        self.solved.calibrate()
 
     @property
     def finished(self) -> bool:
         return False
 
     def counters(self) -> dict:
-        return dict(self.receiver.counters)
+        out = dict(self.receiver.counters)
+        if self.solved is not None:
+            out.update(self.solved.counters(), unmapped_trackers=self.unmapped_trackers)
+        return out
 
     def close(self) -> None:
         self.receiver.close()
 
 
 def open_source(url: "EndpointUrl", performer: str) -> VmcSource:
-    """Factory for ``drivers.sources``: ``vmc://BIND[:PORT][?name=NAME]`` (port 39540, the
-    VMC performer port, when omitted; bind 127.0.0.1 when empty)."""
-    opts = url.take({"name": (str, "")})
+    """Factory for ``drivers.sources``: ``vmc://BIND[:PORT][?name=NAME&input=auto|bones|
+    trackers&points=10|6&calibrate=tpose&roles=SERIAL:ROLE,...&blend=S]`` (port 39540,
+    the VMC performer port, when omitted; bind 127.0.0.1 when empty)."""
+    from stylecast.drivers.trackers.solver import TRACKER_OPTIONS, solved_source
+    from stylecast.drivers.trackers.trackers import parse_role_map
+
+    opts = url.take({"name": (str, ""), "input": (str, "auto"), "roles": (str, ""), **TRACKER_OPTIONS})
+    if opts["input"] not in INPUT_MODES:
+        raise UserError(f"{url.text}: input={opts['input']} must be one of {', '.join(INPUT_MODES)}")
+    name = opts["name"] or performer
+    role_map = parse_role_map(url.text, opts["roles"])
     port = 39540 if url.port is None else url.port
-    return VmcSource(url.host or "127.0.0.1", port, opts["name"] or performer)
+    source = VmcSource(url.host or "127.0.0.1", port, name, opts["input"], role_map=role_map)
+    if opts["input"] != "bones":
+        try:
+            source.solved = solved_source(url, source._feed, name, opts)
+        except BaseException:
+            source.close()
+            raise
+    return source

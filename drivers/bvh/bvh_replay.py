@@ -1,10 +1,11 @@
 """``bvh:///path/clip.bvh?loop=1&speed=1.0``: a recorded clip replayed as a live source.
 
-The clip is read once, retargeted to the canonical humanoid and resampled so that one
-stream frame is 1/60 s of the *replayed* timeline: speed s resamples the content to
-60/s fps and then plays it at 60 fps (speed 2 = half as many frames, same output rate).
-Everything is precomputed, so ``poll`` is an index computation: frame i is due at
-``t0 + i / 60`` on the daemon's clock, which makes a fake-clock replay exact.
+The clip is read once and retargeted to the canonical humanoid; frames are then handed
+out at the clip's OWN rate (30 fps for the Bandai files), paced by the daemon's clock:
+frame i is due at ``t0 + i / (fps * speed)`` and carries that time as its timestamp,
+like any live source. The daemon's session resamples it to the output rate, as it does
+every source (``motion.resample.StreamResampler``): the replay does not resample.
+``speed`` only changes the timeline (speed 2 plays the clip in half the time).
 """
 
 from __future__ import annotations
@@ -16,11 +17,10 @@ import numpy as np
 from stylecast.motion.clip import Clip, PoseFrame
 from stylecast.motion.errors import UserError
 
-from .sources import Source
-from .urls import EndpointUrl
+from stylecast.drivers.sources import Source
+from stylecast.drivers.urls import EndpointUrl
 
-STREAM_FPS = 60.0
-MAX_BURST_FRAMES = 120  # a poll after a long stall returns at most 2 s (the newest frames)
+MAX_BURST_SECONDS = 2.0  # a poll after a long stall returns at most 2 s (the newest frames)
 
 
 def humanoid_motion(clip: Clip, user_map: dict | None = None) -> Clip:
@@ -33,23 +33,21 @@ def humanoid_motion(clip: Clip, user_map: dict | None = None) -> Clip:
 
 
 class ReplaySource(Source):
-    """Replays a humanoid motion at 60 fps, paced by the clock handed to ``start``/``poll``."""
+    """Replays a humanoid motion at its own rate, paced by the clock handed to ``start``/``poll``."""
 
     def __init__(self, motion: Clip, performer: str, loop: bool = False, speed: float = 1.0):
-        from stylecast.motion.resample import resample
-
         if not 0.05 <= speed <= 20.0:
             raise UserError(f"replay speed {speed} is out of range; use a value between 0.05 and 20")
-        stream = resample(motion, STREAM_FPS / speed)
-        if stream.num_frames < 1:
+        if motion.num_frames < 1:
             raise UserError(f"clip for performer {performer!r} has no frames")
         self.performer = performer
         self.skeleton = motion.skeleton
-        self.rotations = np.ascontiguousarray(stream.rotations, dtype=np.float64)
-        self.root_positions = np.ascontiguousarray(stream.root_positions, dtype=np.float64)
+        self.rotations = np.ascontiguousarray(motion.rotations, dtype=np.float64)
+        self.root_positions = np.ascontiguousarray(motion.root_positions, dtype=np.float64)
+        self.period = 1.0 / (motion.fps * speed)  # seconds between frames on the replayed timeline
         self.loop = loop
         self._t0: float | None = None
-        self._next = 0  # stream index of the next frame to hand out
+        self._next = 0  # index of the next frame to hand out (counts on across loops)
         self.skipped = 0
 
     @property
@@ -61,22 +59,23 @@ class ReplaySource(Source):
         self._next = 0
 
     def _available(self, now: float) -> int:
-        """How many stream frames have become due by ``now`` (frame i at t0 + i/60)."""
+        """How many frames have become due by ``now`` (frame i at t0 + i * period)."""
         if self._t0 is None:
             self.start(now)
-        n = math.floor((now - self._t0) * STREAM_FPS + 1e-6) + 1
+        n = math.floor((now - self._t0) / self.period + 1e-6) + 1
         return n if self.loop else min(n, self.num_frames)
 
     def poll(self, now: float) -> list[PoseFrame]:
         stop = self._available(now)
-        if stop - self._next > MAX_BURST_FRAMES:
-            self.skipped += stop - MAX_BURST_FRAMES - self._next
-            self._next = stop - MAX_BURST_FRAMES
+        burst = max(1, int(MAX_BURST_SECONDS / self.period))
+        if stop - self._next > burst:
+            self.skipped += stop - burst - self._next
+            self._next = stop - burst
         frames = []
         T = self.num_frames
         for i in range(self._next, stop):
             k = i % T
-            frames.append(PoseFrame(self.performer, self._t0 + i / STREAM_FPS,
+            frames.append(PoseFrame(self.performer, self._t0 + i * self.period,
                                     self.root_positions[k], self.rotations[k]))
         self._next = max(self._next, stop)
         return frames

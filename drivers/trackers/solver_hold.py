@@ -16,9 +16,9 @@ import numpy as np
 
 from stylecast.motion import rotations as rot
 
-from .solver_body import N_ROLES, B, R
-from .solver_calibration import Calibration
-from .solver_math import _rotate, _smoothstep, _swing
+from stylecast.drivers.trackers.solver_body import N_ROLES, B, R
+from stylecast.drivers.trackers.solver_calibration import Calibration
+from stylecast.drivers.trackers.solver_math import _rotate, _smoothstep, _swing
 
 
 def _relative(hp, hq, p, q):

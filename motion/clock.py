@@ -1,5 +1,11 @@
-"""Injected time. Everything in the daemon that waits or stamps asks a Clock, so tests
-can replay faster than real time and get the same frames, in the same order, every run.
+"""Time, in one place: the output rate and the one clock abstraction.
+
+``OUTPUT_FPS`` is the rate of everything stylecast emits (the daemon's output clock,
+recordings, the model's words); sources may run at any rate and the daemon resamples
+them onto it. Everything that waits or stamps asks an injected ``Clock`` (aiortc's
+habit), so tests replay faster than real time and get the same frames, in the same
+order, every run; drivers take the same clock from below (the daemon, a test, the
+emulator) instead of keeping their own.
 
 * ``RealClock``: ``time.monotonic`` (never jumps with NTP or DST) and a sleep that wakes
   slightly early and spins the last half millisecond, because ``time.sleep`` on a loaded
@@ -16,6 +22,9 @@ import threading
 import time
 
 
+OUTPUT_FPS = 60.0  # frames per second of every output stream (and of the model's words)
+
+
 class Clock:
     """Interface: seconds as a float on an arbitrary, monotonic origin."""
 
@@ -26,6 +35,10 @@ class Clock:
 
     def sleep_until(self, t: float) -> None:
         raise NotImplementedError
+
+    def sleep(self, dt: float) -> None:
+        if dt > 0:
+            self.sleep_until(self.now() + dt)
 
 
 class RealClock(Clock):

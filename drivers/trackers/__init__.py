@@ -1,0 +1,1 @@
+"""stylecast.drivers.trackers.trackers"""

@@ -1,0 +1,139 @@
+"""Any input rate, the performer's own proportions: a VMC bone stream at 30 and 90 Hz
+over real loopback UDP comes out of the daemon at 60 Hz with its duration kept, without
+judder, and with the sender's bone offsets."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from stylecast.daemon.clips import bundled_clip
+from stylecast.daemon.config import DaemonConfig
+from stylecast.daemon.engine import Daemon
+from stylecast.daemon.restylers import IdentityRestyler
+from stylecast.drivers.bvh.bvh_replay import humanoid_motion
+from stylecast.drivers.sources import open_source
+from stylecast.drivers.vmc.vmc_in import VmcReceiver
+from stylecast.drivers.vmc.vmc_out import VmcSender
+from stylecast.motion import rotations as rot
+from stylecast.motion.bvh import read_bvh
+from stylecast.motion.clip import forward_kinematics, pose_world
+from stylecast.motion.clock import OUTPUT_FPS, FakeClock
+from stylecast.motion.humanoid import humanoid_skeleton_default
+from stylecast.motion.resample import StreamResampler, resample
+
+
+DELAY = 15  # frames: hop 15, delay = hop
+
+
+def performer_walk(seconds: float = 3.0):
+    """The shipped Bandai walk on the humanoid: a real performer's proportions, not the
+    default humanoid's."""
+    motion = humanoid_motion(read_bvh(bundled_clip()))
+    return motion.slice(0, int(seconds * motion.fps) + 1)
+
+
+def stream_through_daemon(rate: float, restyler=None, hop: int = DELAY):
+    motion = performer_walk()
+    sent = resample(motion, rate)  # what a sender running at `rate` sends
+    out = VmcReceiver("127.0.0.1", 0)
+    source = open_source("vmc://127.0.0.1:0?input=bones", "p0")
+    sender = VmcSender([source.receiver.address])
+    frames, received = [], []
+    cfg = DaemonConfig(hop=hop, control="off", out=["vmc://127.0.0.1:%d" % out.address[1]])
+    daemon = Daemon(cfg, [source], restyler or IdentityRestyler(), FakeClock(), frame_taps=[frames.append],
+                    log_status=False)
+    try:
+        daemon.start()
+        i = 0
+        for k in range(int(sent.num_frames / rate * OUTPUT_FPS) + 40):
+            # Everything the sender has sent by this tick (sender time = its frame index / rate).
+            while i < sent.num_frames and i / rate <= k / OUTPUT_FPS + 1e-9:
+                sender.send_frame(sent.root_positions[i], sent.rotations[i], motion.skeleton.offsets, i / rate)
+                i += 1
+            deadline = time.monotonic() + 2.0
+            while source.receiver.counters["frames"] < i and time.monotonic() < deadline:
+                time.sleep(0.0005)
+            time.sleep(0.0005)
+            daemon.step()
+            daemon.clock.advance(1 / OUTPUT_FPS)
+            received += [f for f in out.poll(0.0) if f.pose is not None]
+        for _ in range(10):
+            received += [f for f in out.poll(0.02) if f.pose is not None]
+    finally:
+        daemon.close()
+        sender.close()
+        out.close()
+    return motion, sent, frames, received, daemon
+
+
+@pytest.mark.parametrize("rate", [30.0, 90.0])
+def test_a_vmc_stream_at_any_rate_comes_out_at_60_hz_with_its_duration_and_proportions(rate):
+    motion, sent, frames, received, _ = stream_through_daemon(rate)
+    # One output frame per tick, consecutive frame indices, no frame shown twice until
+    # the sender stops (then the last one is held).
+    indices = [f.index for f in frames]
+    new = sorted(set(indices))
+    assert new == list(range(len(new))) and indices[:len(new)] == new
+    # Duration kept within one frame: the span the sender sent, at 60 frames a second.
+    # A live source that stops leaves its last `delay` frames in the daemon (they go out
+    # as the next input pushes them), hence + DELAY.
+    span = (sent.num_frames - 1) / rate
+    assert abs((len(new) + DELAY - 1) / OUTPUT_FPS - span) <= 1 / OUTPUT_FPS, (len(new), span)
+    # No judder: each output frame is the clip at its own 60 Hz time.
+    ref = resample(motion, OUTPUT_FPS)
+    n = min(len(new), ref.num_frames)
+    out_rot = np.stack([frames[indices.index(t)].rotations for t in range(n)])
+    out_root = np.stack([frames[indices.index(t)].root_position for t in range(n)])
+    angle = np.degrees(rot.angle_between(out_rot, ref.rotations[:n]))
+    assert angle.max() < 1.0 and np.abs(out_root - ref.root_positions[:n]).max() < 0.5, (angle.max(),)
+    steps = np.linalg.norm(np.diff(out_root, axis=0), axis=1)
+    ref_steps = np.linalg.norm(np.diff(ref.root_positions[:n], axis=0), axis=1)
+    assert np.abs(steps - ref_steps).max() < 0.1  # cm per frame: an even cadence
+    # The VMC output carries the sender's bone offsets (the performer's proportions):
+    # FK of what the receiver got matches the input's world joint positions.
+    assert len(received) >= len(new)
+    default = humanoid_skeleton_default().offsets
+    assert np.allclose(received[-1].offsets[1:], motion.skeleton.offsets[1:], atol=1e-3)
+    assert not np.allclose(received[-1].offsets[1:], default[1:], atol=1.0)
+    world_ref, _ = forward_kinematics(ref)
+    by_time = {round(f.sender_time * OUTPUT_FPS): f for f in received}
+    delay = min(by_time)  # ticks before the first frame left (the daemon's delay)
+    errors = []
+    for t in range(0, n, 7):
+        f = by_time[t + delay]
+        est = pose_world(humanoid_skeleton_default().parents, f.offsets, f.pose.root_position, f.pose.rotations)[0]
+        errors.append(np.linalg.norm(est - world_ref[t], axis=-1).max())
+    assert max(errors) < 1.0, max(errors)
+
+
+def test_the_stream_resampler_keeps_time_and_restarts_after_a_gap():
+    from stylecast.motion.clip import PoseFrame
+
+    def frame(t, angle):
+        q = rot.from_euler(np.array([[0.0, angle, 0.0]] * 22), "XYZ")
+        return PoseFrame("p", t, np.array([angle, 0.0, 0.0]), q)
+
+    r = StreamResampler(60.0)
+    out = [g for i in range(31) for g in r.feed(frame(i / 30, 3.0 * i))]
+    assert len(out) == 61 and np.allclose(np.diff([f.timestamp for f in out]), 1 / 60)
+    assert np.allclose([f.root_position[0] for f in out], 1.5 * np.arange(61))  # linear in time
+    assert r.feed(frame(0.9, 0.0)) == [] and r.stale == 1  # an old frame is dropped
+    assert len(r.feed(frame(5.0, 0.0))) == 1 and r.restarts == 1  # a pause re-anchors the grid
+
+
+@pytest.mark.parametrize("rate, hop", [(30.0, 10), (30.0, 15), (90.0, 10)])
+def test_slow_or_uneven_rates_leave_the_model_its_time(rate, hop):
+    """Resampled frames of a 30 or 90 Hz source arrive in bursts (two, then none); the
+    session trails by the burst, so with delay = hop no word is late and no frame is
+    shown twice (the daemon waits for every word under the fake clock)."""
+    from stylecast.daemon.restylers import StandInRestyler
+
+    _, _, frames, _, daemon = stream_through_daemon(rate, StandInRestyler(), hop)
+    s = daemon.sessions[0]
+    indices = [f.index for f in frames]
+    new = sorted(set(indices))
+    assert indices[:len(new)] == list(range(len(new)))
+    assert s.blender.late_frames == 0 and s.skipped == 0
