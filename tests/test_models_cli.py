@@ -98,18 +98,19 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     assert main(["eval", "--model", model, "--variant", f"again={model}", "--out", str(tmp_path), "--max-files", "2",
                  "--threads", "1"]) == 0
     report = (tmp_path / "report.md").read_text()
-    for section in ("The judges", "Goals, model under test, live", "All variants, offline", "Per action, live",
+    for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
+                    "Per action, stream",
                     "What the windows were taken for", "Real motion: jerk", "Seams"):
         assert section in report
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     results = metrics["results"]
     assert {"input", "posture", "again", "proposed"} <= set(results)
     # the input scores its own values: the instrument's zero point
-    live_input = results["input"]["live"]["overall"]
+    live_input = results["input"]["stream"]["overall"]
     assert live_input["jerk_ratio"]["all"] == 1.0 and live_input["slide_ratio"] == 1.0
     assert live_input["timing_sync"] == pytest.approx(1.0) and live_input["judged_target"] < 0.5
     # a one-epoch model is nearly the identity: far from the target on FMD, unlike real target windows
-    assert results["proposed"]["live"]["overall"]["fmd"] > metrics["fmd_floor"]
+    assert results["proposed"]["stream"]["overall"]["fmd"] > metrics["fmd_floor"]
     assert (tmp_path / "fig_hand_foot.png").exists()
 
 
