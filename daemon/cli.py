@@ -60,10 +60,13 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unbundled", dest="bundled", action="store_false", default=None,
                    help="send one OSC message per datagram (for receivers without bundle support)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--device", default=None,
+                   help="where the model runs: auto (CUDA when present, the default), cpu, cuda or cuda:N")
 
 
 _CONFIG_KEYS = ("source", "out", "out_input", "record", "hop", "delay", "decay", "crossfade", "intensity",
-                "bypass", "model", "direction", "control", "allow", "status_interval", "bundled", "duration")
+                "bypass", "model", "direction", "control", "allow", "status_interval", "bundled", "duration",
+                "device")
 
 
 def _config(args):

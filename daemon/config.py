@@ -45,6 +45,7 @@ class DaemonConfig:
     status_interval: float = 5.0
     bundled: bool = True
     duration: float = 0.0  # seconds; 0 = until stopped
+    device: str = "auto"  # where the model runs: auto (CUDA when present), cpu, cuda[:N]
 
     def validate(self) -> "DaemonConfig":
         if not 1 <= self.hop <= 60:
@@ -57,6 +58,9 @@ class DaemonConfig:
             raise UserError(f"--crossfade {self.crossfade} is out of range; use 0 to 60 seconds")
         if self.status_interval <= 0:
             raise UserError("--status-interval must be positive")
+        from stylecast.models.device import check_device_name
+
+        self.device = check_device_name(self.device)
         return self
 
     @property

@@ -69,12 +69,13 @@ def staggered(settings: BlendSettings, k: int, performers: int) -> BlendSettings
 
 class Daemon:
     def __init__(self, config: DaemonConfig, sources: list, restyler, clock: Clock, *,
-                 tap=None, frame_taps=None, model_loader=load_restyler, log_status: bool = True):
+                 tap=None, frame_taps=None, model_loader=None, log_status: bool = True):
         if not sources:
             raise UserError("no source given; add one such as --source bvh:///path/clip.bvh?loop=1")
         self.config = config.validate()
         self.clock = clock
-        self.model_loader = model_loader
+        # /stylecast/model loads onto the device the daemon was started with.
+        self.model_loader = model_loader or (lambda name: load_restyler(name, config.device))
         self.log_status = log_status
         self.settings = BlendSettings(
             hop=config.hop, delay=config.delay or None,

@@ -50,7 +50,7 @@ def run_daemon(config: DaemonConfig, restyler=None, sources=None, stop: threadin
         sources = open_sources(config.source)  # cheap errors (bad URL, missing file) first
     if restyler is None:
         try:
-            restyler = load_restyler(config.model)
+            restyler = load_restyler(config.model, config.device)
         except BaseException:
             for s in sources:
                 s.close()

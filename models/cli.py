@@ -57,6 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "pre-roll): the same frames `stylecast serve` sends for this clip")
     p.add_argument("--map", type=Path, help="JSON/TOML table of source joint name -> humanoid bone")
     p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
+    p.add_argument("--device", default="auto", help="where the model runs: auto (CUDA when present), cpu or cuda[:N]")
     p.set_defaults(func=run_restyle)
 
     p = sub.add_parser("eval", help="evaluate the proposed model against the baseline on held-out files")
@@ -103,7 +104,8 @@ def run_restyle(args) -> int:
 
     _threads(args.threads)
     info = restyle_file(args.input, args.output, model=args.model, direction=args.direction,
-                        intensity=args.intensity, hop=args.hop, fps=args.fps, map_file=args.map, live=args.live)
+                        intensity=args.intensity, hop=args.hop, fps=args.fps, map_file=args.map, live=args.live,
+                        device=args.device)
     print(f"wrote {args.output}: {info['joints']} joints, {info['frames']} frames at {info['fps']:g} fps "
           f"({info['model']}, {info['direction']}: {info['from']} -> {info['to']})")
     return 0

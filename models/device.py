@@ -22,6 +22,14 @@ _CUBLAS_WORKSPACE = ":4096:8"
 _NONDETERMINISTIC = re.compile(r"^(\S+) does not have a deterministic implementation")
 
 
+def check_device_name(name: str) -> str:
+    """The --device value, normalised, or one sentence; needs no torch (config checks)."""
+    text = str(name or "auto").strip().lower()
+    if not _DEVICE.match(text):
+        raise UserError(f"--device {name!r} is not a device; use {DEVICE_CHOICES}")
+    return text
+
+
 def pick_device(name="auto"):
     """A ``torch.device`` for a --device value; "auto" is the first CUDA device when
     there is one, else the CPU. Refuses unknown names and missing CUDA devices in one
@@ -30,9 +38,7 @@ def pick_device(name="auto"):
 
     if isinstance(name, torch.device):
         name = str(name)
-    text = str(name or "auto").strip().lower()
-    if not _DEVICE.match(text):
-        raise UserError(f"--device {name!r} is not a device; use {DEVICE_CHOICES}")
+    text = check_device_name(name)
     if text == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     if text.startswith("cuda"):

@@ -158,3 +158,13 @@ def test_determinism_reports_an_op_once_and_passes_other_warnings(recwarn):
             warnings.warn("something else", RuntimeWarning)
     assert len(lines) == 1 and "upsample_linear1d_backward_out_cuda" in lines[0]
     assert sum("something else" in str(w.message) for w in recwarn) >= 1
+
+
+def test_serve_config_refuses_a_bad_device_and_loads_models_on_the_chosen_one():
+    from stylecast.daemon.config import build_config
+    from stylecast.daemon.restylers import load_restyler
+
+    with pytest.raises(UserError, match="not a device"):
+        build_config({}, {"device": "gpu"})
+    assert build_config({}, {"device": "CPU"}).device == "cpu"
+    assert load_restyler(SHIPPED[0], "cpu").device.type == "cpu"
