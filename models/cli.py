@@ -81,10 +81,12 @@ def _threads(n):
 
 
 def run_train(args) -> int:
+    from .device import pick_device
     from .networks import NetworkConfig
     from .train import TrainConfig, load_training_words, train
 
     _threads(args.threads)
+    pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss, epochs=args.epochs,
                       batch_size=args.batch_size, words_per_epoch=args.words_per_epoch, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, network=NetworkConfig())
