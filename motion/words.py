@@ -51,6 +51,18 @@ def word_ends(num_frames: int, hop: int, word_length: int = WORD_LENGTH) -> list
     return list(range(word_length - 1, num_frames, hop))
 
 
+def cut_words(frames: np.ndarray, hop: int, word_length: int = WORD_LENGTH,
+              phase: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Every word a ``WordCutter`` fed ``frames`` (T, J, 4) one by one would emit, in one
+    gather: (ends (N,), words (N, word_length, J, 4)), each word in one hemisphere over
+    time. Offline restyling cuts whole clips this way (the per-frame loop cost more than
+    the rest of the stream code together)."""
+    frames = np.asarray(frames, dtype=np.float64)
+    ends = np.arange(word_length - 1 + phase, len(frames), hop)
+    index = ends[:, None] + np.arange(1 - word_length, 1)[None, :]
+    return ends, rot.canonical_hemisphere(frames[index], axis=1)
+
+
 @dataclass
 class WordCutter:
     """Ring buffer of input rotations; emits a word every ``hop`` frames, the first when
@@ -143,6 +155,11 @@ class SeamBlender:
 
     def add_word(self, end: int, restyled: np.ndarray) -> None:
         self._words[end] = rot.canonical_hemisphere(np.asarray(restyled, dtype=np.float64))
+
+    def add_words(self, ends, restyled: np.ndarray) -> None:
+        """``add_word`` for a batch (N,) / (N, T, J, 4) in one vectorised pass."""
+        for end, word in zip(ends, rot.canonical_hemisphere(np.asarray(restyled, dtype=np.float64), axis=1)):
+            self._words[int(end)] = word
 
     def serving_word(self, t: int) -> int:
         """End frame of the word that serves frame t (the first grid end >= t)."""
@@ -239,15 +256,7 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     blender = SeamBlender(settings, J)
     held = max(blender.serving_word(T - 1) - (T - 1), 0)
     padded = np.concatenate([rotations, np.repeat(rotations[-1:], held, axis=0)])
-    cutter = WordCutter(settings.hop, settings.word_length, settings.phase)
-    ends, words = [], []
-    for frame in padded:
-        out = cutter.push(frame)
-        if out is not None:
-            ends.append(out[0])
-            words.append(out[1])
+    ends, words = cut_words(padded, settings.hop, settings.word_length, settings.phase)
     for i in range(0, len(words), batch):
-        restyled = restyle_words(np.stack(words[i:i + batch]))
-        for end, word in zip(ends[i:i + batch], restyled):
-            blender.add_word(end, word)
+        blender.add_words(ends[i:i + batch], restyle_words(words[i:i + batch]))
     return blender.render_block(0, rotations, intensity)
