@@ -42,8 +42,12 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out-input", dest="out_input", action="append", default=None, metavar="URL",
                    help="vmc://HOST:PORT for the unrestyled input (before/after views)")
     p.add_argument("--record", default=None, metavar="FILE.bvh", help="record the restyled humanoid motion")
-    p.add_argument("--hop", type=int, default=None, help="frames between motion words, 1..60 (default 15)")
-    p.add_argument("--delay", type=int, default=None, help="output delay in frames, >= hop (default: hop)")
+    p.add_argument("--latency", default=None, choices=("default", "low", "relaxed"),
+                   help="hop and delay preset: default (hop 4, delay 5: <= 100 ms), low (hop 1, delay 1: <= 35 ms), "
+                        "relaxed (hop 15, delay 15); --hop and --delay override it")
+    p.add_argument("--hop", type=int, default=None, help="frames between motion words, 1..60 (default: the preset's)")
+    p.add_argument("--delay", type=int, default=None,
+                   help="output delay in frames, >= hop (default: the preset's; raised when the model is too slow)")
     p.add_argument("--decay", type=float, default=None, help="seam offset time constant in frames")
     p.add_argument("--crossfade", type=float, default=None, help="seconds of every fade (default 0.5)")
     p.add_argument("--intensity", type=float, default=None, help="0..1 (default 1)")
@@ -64,7 +68,7 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
                    help="where the model runs: auto (CUDA when present, the default), cpu, cuda or cuda:N")
 
 
-_CONFIG_KEYS = ("source", "out", "out_input", "record", "hop", "delay", "decay", "crossfade", "intensity",
+_CONFIG_KEYS = ("source", "out", "out_input", "record", "latency", "hop", "delay", "decay", "crossfade", "intensity",
                 "bypass", "model", "direction", "control", "allow", "status_interval", "bundled", "duration",
                 "device")
 

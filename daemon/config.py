@@ -32,8 +32,9 @@ class DaemonConfig:
     out: list[str] = field(default_factory=list)
     out_input: list[str] = field(default_factory=list)
     record: str = ""
-    hop: int = 15
-    delay: int = 0  # frames; 0 = the hop (the minimum)
+    latency: str = "default"  # a preset of hop and delay (daemon.latency.LATENCY_PRESETS)
+    hop: int = 0  # frames; 0 = the latency preset's
+    delay: int = 0  # frames; 0 = the preset's when the hop is too, else the hop (the minimum)
     decay: float = -1.0  # seam offset time constant in frames; -1 = the blender's default
     crossfade: float = 0.5  # seconds of every pass-through <-> restyled fade
     intensity: float = 1.0
@@ -48,6 +49,14 @@ class DaemonConfig:
     device: str = "auto"  # where the model runs: auto (CUDA when present), cpu, cuda[:N]
 
     def validate(self) -> "DaemonConfig":
+        from .latency import LATENCY_PRESETS
+
+        preset = LATENCY_PRESETS.get(self.latency)
+        if preset is None:
+            raise UserError(f"--latency {self.latency!r} is not a preset; use one of {', '.join(LATENCY_PRESETS)}")
+        if self.hop == 0:  # the preset's hop, and its delay unless one was given
+            self.hop = preset.hop
+            self.delay = self.delay or preset.hop + preset.slack - 1
         if not 1 <= self.hop <= 60:
             raise UserError(f"--hop {self.hop} is out of range; use 1 to 60 frames")
         if self.delay and self.delay < self.hop:

@@ -8,10 +8,13 @@ Latency model (``motion.words`` has the derivation):
   frame: output frame t leaves on the tick ``delay`` frames after input frame t arrived
   (delay >= hop, default hop), so the added latency is delay/60 s plus the processing
   time of the tick (a replayed source arrives on the ticks themselves).
-* The word ending at e is first needed on the tick after frame e arrived: the model gets
-  one frame period (16.7 ms). A word that is not back by then is *late*: the blender
-  fades that stretch to pass-through and blends back in when words return (counted per
-  performer as late frames). The output clock never waits for the model.
+* The word ending at e is first needed delay - hop + 1 ticks after frame e arrived (the
+  model's *slack*). The slack is chosen so words are on time (``daemon.latency``): the
+  model is timed before the clock starts, and the delay is raised, with one status line,
+  when the measured time from a tick to its results no longer fits. A word that is
+  still not back in time is *late*: the blender fades that stretch to pass-through and
+  blends back in when words return (counted per performer as late frames). The output
+  clock never waits for the model.
 * A tick that starts late (machine busy) still goes out, as soon as possible; a tick
   more than ``MAX_BACKLOG_TICKS`` periods late is dropped instead of bunched: its output
   frames are counted as dropped, the sessions skip the matching input frames, and the
@@ -41,6 +44,7 @@ from .clock import Clock
 from .config import FPS, DaemonConfig
 from .control import ControlServer
 from .inference import InferenceWorker
+from .latency import MAX_SLACK, calibrate, delay_line, slack_for
 from .output import (PerformerSinks, VmcOut, parse_outputs, performer_targets, recording_path)
 from .restylers import load_restyler, model_name, style_label, with_direction
 from .session import Session
@@ -53,6 +57,7 @@ MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not s
 
 
 BATCH_GROUP = 8  # performers whose words share one model call
+PLAN_EVERY_TICKS = 60  # how often the slack planner's estimate is checked (1 s)
 
 
 def staggered(settings: BlendSettings, k: int, performers: int) -> BlendSettings:
@@ -85,7 +90,8 @@ class Daemon:
         self.sinks: list[PerformerSinks] = []
         if config.direction:
             restyler = with_direction(restyler, config.direction)
-        self.worker = InferenceWorker(restyler)
+        self.worker = InferenceWorker(restyler, clock=clock.now)
+        self.delay_notes: list[str] = []  # the status lines of delay raises (also logged)
         self.control: ControlServer | None = None
         self.style = style_label(restyler)
         self.ticks = 0
@@ -143,10 +149,57 @@ class Daemon:
 
     # -- the clock ----------------------------------------------------------------------
     def start(self) -> None:
+        if not self.clock.virtual:
+            self._calibrate()
         self._t0 = self.clock.now()
         self._next_status = self._t0 + self.config.status_interval
         for s in self.sessions:
             s.source.start(self._t0)
+
+    # -- slack: every word on time (daemon.latency) ----------------------------------------
+    @property
+    def slack(self) -> int:
+        return self.settings.delay - self.settings.hop + 1
+
+    def words_per_tick(self) -> int:
+        """The most words one tick hands the model: the performers sharing a word phase."""
+        phases = [s.settings.phase for s in self.sessions]
+        return max(phases.count(p) for p in set(phases))
+
+    def _calibrate(self) -> None:
+        """Time the model on one tick's batch before the clock starts; start with a slack
+        that covers it (twice over: live, the output loop competes for the CPU)."""
+        from .latency import CALIBRATION_FACTOR
+
+        batch = self.words_per_tick()
+        try:
+            seconds = calibrate(self.worker.restyler, batch, len(HUMANOID_BONES), repeats=2)
+        except Exception as exc:  # a broken model is the worker's to count, not a startup crash
+            log.warning("model timing before start failed (%s); keeping delay %d", exc, self.settings.delay)
+            return
+        self._raise_slack(slack_for(seconds, CALIBRATION_FACTOR),
+                          f"one call on {batch} word(s) takes {seconds * 1e3:.1f} ms")
+
+    def _plan_slack(self) -> None:
+        needed = self.worker.planner.needed_slack()
+        if needed is not None:
+            self._raise_slack(needed, f"results ready {self.worker.planner.estimate_ms():.1f} ms after their "
+                                      f"tick (p95)")
+
+    def _raise_slack(self, needed: int, reason: str) -> None:
+        if needed <= self.slack:
+            return
+        capped = needed > MAX_SLACK
+        hop, old = self.settings.hop, self.settings.delay
+        new = hop - 1 + min(needed, MAX_SLACK)
+        if new <= old:
+            return
+        self.settings.delay = new
+        for s in self.sessions:
+            s.set_delay(new)
+        line = delay_line(reason, hop, old, new, capped)
+        self.delay_notes.append(line)
+        log.warning(line)
 
     def tick_time(self, k: int) -> float:
         return self._t0 + k / FPS
@@ -199,7 +252,7 @@ class Daemon:
         for session in self.sessions:
             for end, word in session.ingest(now):
                 batch.append((session.index, end, word))
-        self.worker.submit(batch)
+        self.worker.submit(batch, now)
         vmc_time = self.ticks / FPS
         for session, sinks in zip(self.sessions, self.sinks):
             frame = session.render(drain=session.source.finished)
@@ -209,6 +262,8 @@ class Daemon:
             if session.new_frame:
                 session.latency.add(self.clock.now() - frame.arrival)
         self.ticks += 1
+        if not self.clock.virtual and self.ticks % PLAN_EVERY_TICKS == 0:
+            self._plan_slack()
         if self.clock.now() >= self._next_status:
             self._next_status += self.config.status_interval
             if self.log_status:
@@ -302,6 +357,8 @@ class Daemon:
         performers = [s.counters() for s in self.sessions]
         return {"daemon": {"style": self.style, "model": model_name(self.worker.restyler),
                            "performers": len(self.sessions), "ticks": self.ticks,
+                           "hop": self.settings.hop, "delay": self.settings.delay,
+                           "model_ready_p95_ms": round(self.worker.planner.estimate_ms(), 2),
                            "dropped_ticks": self.dropped_ticks, "faults": self.worker.faults,
                            "control_refused": self.control.refused if self.control else 0},
                 "performers": performers}
