@@ -1,7 +1,8 @@
 """Daemon benchmarks: latency, capacity, CPU cost, seam ratio. Prints tables; not a test.
 
     python bench/bench_daemon.py                # everything (a few minutes)
-    python bench/bench_daemon.py latency seams  # a subset: latency capacity cpu seams
+    python bench/bench_daemon.py latency seams  # a subset: latency capacity cpu seams presets
+    python bench/bench_daemon.py presets 8 10   # presets only, 8 performers, 10 s per run
 
 Latency: one performer replayed at 60 fps whose hips x position encodes the frame index;
 the daemon sends VMC over loopback to a receiver *process* (so its timestamps do not
@@ -15,6 +16,10 @@ N grows until a run drops an output tick (a tick that started more than a whole 
 period late) or shows late words. CPU: process CPU time per performer-second for bypass
 and restyle, against a plain python-osc relay (parse every datagram with python-osc,
 forward the same bytes) fed the daemon's own packets at the same rate.
+
+Presets (issue 12): N performers (default 8) under each --latency preset, against the
+pre-issue-12 behaviour in the same run (hop 15, delay 15, no model timing, no slack
+planning): loopback latency p50/p99/max, late frames, dropped ticks, the final delay.
 
 Seams: the paper's d_t (Euclidean distance of a bone's Euler angles, scaled to [-1, 1],
 between consecutive frames), mean at frames where the served word changes over mean
@@ -158,14 +163,19 @@ def table(title, header, rows):
         print(line(r))
 
 
-def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0):
+def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0, latency="default", legacy=False):
+    """hop 0: the latency preset's hop and delay. ``legacy``: as before issue 12 (no model
+    timing before the start, no slack planning while running)."""
     from stylecast.daemon.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
-    cfg = DaemonConfig(hop=hop, control="off", out=[f"vmc://127.0.0.1:{port}"], bypass=bypass)
+    cfg = DaemonConfig(hop=hop, latency=latency, control="off", out=[f"vmc://127.0.0.1:{port}"], bypass=bypass)
     sources = [indexed_source(motion, f"p{k}") for k in range(n)]
-    return Daemon(cfg, sources, model, RealClock(), log_status=False)
+    d = Daemon(cfg, sources, model, RealClock(), log_status=False)
+    if legacy:
+        d._calibrate = d._plan_slack = lambda: None
+    return d
 
 
 # ----------------------------------------------------------------------------- benches
@@ -191,6 +201,31 @@ def bench_latency(model, motion, seconds=8.0):
     table("Latency: input frame arrival -> restyled frame received on loopback (ms)",
           ("hop", "delay", "p50", "p99", "max", "daemon p50", "daemon p99", "goal p99", "met", "late", "dropped"),
           rows)
+
+
+def bench_presets(model, motion, n=8, seconds=8.0):
+    rows = []
+    for label, hop, latency, legacy, goal in (("before issue 12 (hop 15, delay 15)", 15, "relaxed", True, None),
+                                              ("--latency default", 0, "default", False, 100.0),
+                                              ("--latency low", 0, "low", False, 35.0)):
+        port = free_ports(n)
+        rx = Receiver([port + k for k in range(n)], decode_index=True)
+        d = make_daemon(n, hop, model, motion, port, latency=latency, legacy=legacy)
+        d.run(duration=seconds)
+        t0 = d.sessions[0].source._t0
+        d.close()
+        _, stamps = rx.stop()
+        lat = np.array([t - (t0 + i / FPS) for i, t in stamps]) * 1e3
+        lat = lat[len(lat) // 10:]  # skip the start-up second
+        p99 = np.percentile(lat, 99)
+        late = sum(s.blender.late_frames for s in d.sessions)
+        met = "" if goal is None else ("yes" if p99 <= goal and late == 0 and d.dropped_ticks == 0 else "NO")
+        rows.append((label, d.settings.hop, d.settings.delay, f"{np.percentile(lat, 50):.1f}", f"{p99:.1f}",
+                     f"{np.max(lat):.1f}", late, d.dropped_ticks, len(d.delay_notes),
+                     "" if goal is None else f"<= {goal:.0f}", met))
+    table(f"Latency presets, {n} performers, {seconds:.0f} s each (loopback, ms)",
+          ("setting", "hop", "final delay", "p50", "p99", "max", "late frames", "dropped ticks", "delay raises",
+           "goal p99", "met"), rows)
 
 
 def run_capacity(n, model, motion, seconds, bypass=False):
@@ -395,7 +430,9 @@ def ReplaySourceRotations(motion):  # noqa: N802 (reads like the source it stand
 
 
 def main(argv):
-    which = set(argv) or {"latency", "compute", "capacity", "cpu", "seams"}
+    numbers = [float(a) for a in argv if a.replace(".", "", 1).isdigit()]
+    which = {a for a in argv if not a.replace(".", "", 1).isdigit()} or {"latency", "compute", "capacity", "cpu",
+                                                                          "seams", "presets"}
     import scipy
 
     print("machine: " + describe(f"scipy {scipy.__version__}"))
@@ -410,6 +447,8 @@ def main(argv):
         bench_capacity(model, motion)
     if "cpu" in which:
         bench_cpu(model, motion)
+    if "presets" in which:
+        bench_presets(model, motion, int(numbers[0]) if numbers else 8, numbers[1] if len(numbers) > 1 else 8.0)
     if "seams" in which:
         bench_seams(model)
 

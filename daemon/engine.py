@@ -58,6 +58,11 @@ MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not s
 
 BATCH_GROUP = 8  # performers whose words share one model call
 PLAN_EVERY_TICKS = 60  # how often the slack planner's estimate is checked (1 s)
+# torch's CPU threads for the live model. More than one makes its threads wait on each
+# other and on the output loop: on this project's shared 2-core machine, 8 words took
+# 575 ms with 2 threads against 11.5 ms with one (issue 12). Batches, not threads, are
+# how the live path scales (and worker processes, one per core).
+LIVE_TORCH_THREADS = 1
 
 
 def staggered(settings: BlendSettings, k: int, performers: int) -> BlendSettings:
@@ -70,6 +75,14 @@ def staggered(settings: BlendSettings, k: int, performers: int) -> BlendSettings
     still batched, and no tick carries more than a group's worth."""
     groups = -(-performers // BATCH_GROUP)
     return dataclasses.replace(settings, phase=(k // BATCH_GROUP) * settings.hop // groups)
+
+
+def _limit_torch_threads() -> None:
+    import sys
+
+    torch = sys.modules.get("torch")  # only a model that uses torch has imported it
+    if torch is not None and torch.get_num_threads() > LIVE_TORCH_THREADS:
+        torch.set_num_threads(LIVE_TORCH_THREADS)
 
 
 class Daemon:
@@ -150,6 +163,7 @@ class Daemon:
     # -- the clock ----------------------------------------------------------------------
     def start(self) -> None:
         if not self.clock.virtual:
+            _limit_torch_threads()
             self._calibrate()
         self._t0 = self.clock.now()
         self._next_status = self._t0 + self.config.status_interval
