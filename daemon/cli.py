@@ -64,13 +64,15 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unbundled", dest="bundled", action="store_false", default=None,
                    help="send one OSC message per datagram (for receivers without bundle support)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes to spread the performers over, each with its own model (default 1)")
     p.add_argument("--device", default=None,
                    help="where the model runs: auto (CUDA when present, the default), cpu, cuda or cuda:N")
 
 
 _CONFIG_KEYS = ("source", "out", "out_input", "record", "latency", "hop", "delay", "decay", "crossfade", "intensity",
                 "bypass", "model", "direction", "control", "allow", "status_interval", "bundled", "duration",
-                "device")
+                "device", "workers")
 
 
 def _config(args):
@@ -89,9 +91,13 @@ def _setup_logging() -> None:
 
 def cmd_serve(args) -> int:
     from .runner import run_daemon
+    from .workers import run_workers
 
     _setup_logging()
-    return run_daemon(_config(args))
+    config = _config(args)
+    if config.workers > 1 and len(config.source) > 1:
+        return run_workers(config)
+    return run_daemon(config)
 
 
 def cmd_demo(args) -> int:

@@ -47,6 +47,7 @@ class DaemonConfig:
     bundled: bool = True
     duration: float = 0.0  # seconds; 0 = until stopped
     device: str = "auto"  # where the model runs: auto (CUDA when present), cpu, cuda[:N]
+    workers: int = 1  # processes the performers are spread over (daemon.workers)
 
     def validate(self) -> "DaemonConfig":
         from .latency import LATENCY_PRESETS
@@ -67,6 +68,8 @@ class DaemonConfig:
             raise UserError(f"--crossfade {self.crossfade} is out of range; use 0 to 60 seconds")
         if self.status_interval <= 0:
             raise UserError("--status-interval must be positive")
+        if not 1 <= self.workers <= 256:
+            raise UserError(f"--workers {self.workers} is out of range; use 1 to 256 processes")
         from stylecast.models.device import check_device_name
 
         self.device = check_device_name(self.device)

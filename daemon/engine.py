@@ -87,7 +87,11 @@ def _limit_torch_threads() -> None:
 
 class Daemon:
     def __init__(self, config: DaemonConfig, sources: list, restyler, clock: Clock, *,
-                 tap=None, frame_taps=None, model_loader=None, log_status: bool = True):
+                 tap=None, frame_taps=None, model_loader=None, log_status: bool = True,
+                 first_index: int = 0, remote=None):
+        """``first_index``: the global index of this daemon's first performer (output ports
+        and recording names count from it); ``remote``: a connection to the parent of a
+        worker process (``daemon.workers``), which forwards control and asks for status."""
         if not sources:
             raise UserError("no source given; add one such as --source bvh:///path/clip.bvh?loop=1")
         self.config = config.validate()
@@ -105,6 +109,9 @@ class Daemon:
             restyler = with_direction(restyler, config.direction)
         self.worker = InferenceWorker(restyler, clock=clock.now)
         self.delay_notes: list[str] = []  # the status lines of delay raises (also logged)
+        self.first_index = first_index
+        self.remote = remote
+        self.remote_stopped = False
         self.control: ControlServer | None = None
         self.style = style_label(restyler)
         self.ticks = 0
@@ -143,11 +150,11 @@ class Daemon:
             bundled = self.config.bundled
             self.sinks.append(PerformerSinks(
                 skeleton.offsets,
-                vmc=VmcOut(performer_targets(outs, k), bundled if bundled_out is None else bundled_out, tap)
-                if outs else None,
-                vmc_input=VmcOut(performer_targets(ins, k), bundled if bundled_in is None else bundled_in)
-                if ins else None,
-                recorder=self._recorder(k, skeleton),
+                vmc=VmcOut(performer_targets(outs, self.first_index + k),
+                           bundled if bundled_out is None else bundled_out, tap) if outs else None,
+                vmc_input=VmcOut(performer_targets(ins, self.first_index + k),
+                                 bundled if bundled_in is None else bundled_in) if ins else None,
+                recorder=self._recorder(self.first_index + k, skeleton),
                 frame_taps=frame_taps))
         address = self.config.control_address()
         if address is not None:
@@ -227,7 +234,7 @@ class Daemon:
     def run(self, stop: threading.Event | None = None, duration: float = 0.0) -> None:
         if self._t0 is None:
             self.start()
-        while not (stop is not None and stop.is_set()) and not self.finished:
+        while not (stop is not None and stop.is_set()) and not self.finished and not self.remote_stopped:
             if duration and self.ticks / FPS >= duration:
                 break
             self.clock.sleep_until(self.tick_time(self.ticks))
@@ -292,6 +299,8 @@ class Daemon:
             self.worker.set_restyler(model)
             self.style = style_label(model)
             log.info("model %s is live", self.style)
+        if self.remote is not None:
+            self._serve_remote()
         if self.control is None:
             return
         replies = 0
@@ -305,6 +314,23 @@ class Daemon:
                     self.apply(command, value, performer)
             except UserError as exc:
                 self._control_error(str(exc))
+
+    def _serve_remote(self) -> None:
+        """A worker process: apply what the parent forwards, answer its status requests."""
+        try:
+            while self.remote.poll():
+                kind, *args = self.remote.recv()
+                if kind == "status":
+                    self.remote.send(("status", self.snapshot()))
+                elif kind == "apply":
+                    try:
+                        self.apply(*args)
+                    except UserError as exc:
+                        self._control_error(str(exc))
+                elif kind == "stop":
+                    self.remote_stopped = True
+        except (EOFError, OSError):  # the parent is gone: stop cleanly
+            self.remote_stopped = True
 
     def apply(self, command: str, value, performer: str | None = None) -> None:
         """Apply one setting live (also the API tests and embedders use)."""
