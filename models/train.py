@@ -37,7 +37,7 @@ from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
 from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
-from .device import Determinism, pick_device  # noqa: F401 (pick_device: the old import path)
+from .device import Determinism, pick_device
 from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
 from . import representation as R
 from .representation import euler_features, get_representation

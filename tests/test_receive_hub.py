@@ -25,7 +25,6 @@ class Reader:
 
     def __init__(self, sock):
         self.sock, self.limits, self.read = sock, [], 0
-        self.first_data_at_other = None
 
     def __call__(self, limit):
         self.limits.append(limit)
