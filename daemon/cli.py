@@ -42,9 +42,11 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out-input", dest="out_input", action="append", default=None, metavar="URL",
                    help="vmc://HOST:PORT for the unrestyled input (before/after views)")
     p.add_argument("--record", default=None, metavar="FILE.bvh", help="record the restyled humanoid motion")
-    p.add_argument("--latency", default=None, choices=("default", "low", "relaxed"),
-                   help="hop and delay preset: default (hop 4, delay 5: <= 100 ms), low (hop 1, delay 1: <= 35 ms), "
-                        "relaxed (hop 15, delay 15); --hop and --delay override it")
+    from .latency import LATENCY_PRESETS  # small: no numpy, no torch
+
+    p.add_argument("--latency", default=None, choices=tuple(LATENCY_PRESETS),
+                   help="hop and delay preset: " + "; ".join(f"{k}: {v.about}" for k, v in LATENCY_PRESETS.items())
+                        + "; --hop and --delay override it")
     p.add_argument("--hop", type=int, default=None, help="frames between motion words, 1..60 (default: the preset's)")
     p.add_argument("--delay", type=int, default=None,
                    help="output delay in frames, >= hop (default: the preset's; raised when the model is too slow)")
