@@ -1,7 +1,9 @@
 """Daemon benchmarks: latency, capacity, CPU cost, seam ratio. Prints tables; not a test.
 
     python bench/bench_daemon.py                # everything (a few minutes)
-    python bench/bench_daemon.py latency seams  # a subset: latency capacity cpu seams
+    python bench/bench_daemon.py latency seams  # a subset: latency capacity cpu seams presets
+    python bench/bench_daemon.py presets 8 10   # presets only, 8 performers, 10 s per run
+    python bench/bench_daemon.py capacity 5     # capacity only, 5 s per run
 
 Latency: one performer replayed at 60 fps whose hips x position encodes the frame index;
 the daemon sends VMC over loopback to a receiver *process* (so its timestamps do not
@@ -15,6 +17,10 @@ N grows until a run drops an output tick (a tick that started more than a whole 
 period late) or shows late words. CPU: process CPU time per performer-second for bypass
 and restyle, against a plain python-osc relay (parse every datagram with python-osc,
 forward the same bytes) fed the daemon's own packets at the same rate.
+
+Presets (issue 12): N performers (default 8) under each --latency preset, against the
+pre-issue-12 behaviour in the same run (hop 15, delay 15, no model timing, no slack
+planning): loopback latency p50/p99/max, late frames, dropped ticks, the final delay.
 
 Seams: the paper's d_t (Euclidean distance of a bone's Euler angles, scaled to [-1, 1],
 between consecutive frames), mean at frames where the served word changes over mean
@@ -161,14 +167,19 @@ def table(title, header, rows):
         print(line(r))
 
 
-def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0):
+def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0, latency="default", legacy=False):
+    """hop 0: the latency preset's hop and delay. ``legacy``: as before issue 12 (no model
+    timing before the start, no slack planning while running)."""
     from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
-    cfg = DaemonConfig(hop=hop, control="off", out=[f"vmc://127.0.0.1:{port}"], bypass=bypass)
+    cfg = DaemonConfig(hop=hop, latency=latency, control="off", out=[f"vmc://127.0.0.1:{port}"], bypass=bypass)
     sources = [indexed_source(motion, f"p{k}") for k in range(n)]
-    return Daemon(cfg, sources, model, RealClock(), log_status=False)
+    d = Daemon(cfg, sources, model, RealClock(), log_status=False)
+    if legacy:
+        d._calibrate = d._plan_slack = lambda: None
+    return d
 
 
 # ----------------------------------------------------------------------------- benches
@@ -196,10 +207,35 @@ def bench_latency(model, motion, seconds=8.0):
           rows)
 
 
-def run_capacity(n, model, motion, seconds, bypass=False):
+def bench_presets(model, motion, n=8, seconds=8.0):
+    rows = []
+    for label, hop, latency, legacy, goal in (("before issue 12 (hop 15, delay 15)", 15, "relaxed", True, None),
+                                              ("--latency default", 0, "default", False, 100.0),
+                                              ("--latency low", 0, "low", False, 35.0)):
+        port = free_ports(n)
+        rx = Receiver([port + k for k in range(n)], decode_index=True)
+        d = make_daemon(n, hop, model, motion, port, latency=latency, legacy=legacy)
+        d.run(duration=seconds)
+        t0 = d.sessions[0].source._t0
+        d.close()
+        _, stamps = rx.stop()
+        lat = np.array([t - (t0 + i / FPS) for i, t in stamps]) * 1e3
+        lat = lat[len(lat) // 10:]  # skip the start-up second
+        p99 = np.percentile(lat, 99)
+        late = sum(s.blender.late_frames for s in d.sessions)
+        met = "" if goal is None else ("yes" if p99 <= goal and late == 0 and d.dropped_ticks == 0 else "NO")
+        rows.append((label, d.settings.hop, d.settings.delay, f"{np.percentile(lat, 50):.1f}", f"{p99:.1f}",
+                     f"{np.max(lat):.1f}", late, d.dropped_ticks, len(d.delay_notes),
+                     "" if goal is None else f"<= {goal:.0f}", met))
+    table(f"Latency presets, {n} performers, {seconds:.0f} s each (loopback, ms)",
+          ("setting", "hop", "final delay", "p50", "p99", "max", "late frames", "dropped ticks", "delay raises",
+           "goal p99", "met"), rows)
+
+
+def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relaxed", legacy=False):
     port = free_ports(n)
     rx = Receiver([port + k for k in range(n)])
-    d = make_daemon(n, 15, model, motion, port, bypass=bypass)
+    d = make_daemon(n, hop, model, motion, port, bypass=bypass, latency=latency, legacy=legacy)
     cpu0, wall0 = time.process_time(), time.monotonic()
     d.run(duration=seconds)
     cpu, wall = time.process_time() - cpu0, time.monotonic() - wall0
@@ -207,26 +243,33 @@ def run_capacity(n, model, motion, seconds, bypass=False):
     received, _ = rx.stop()
     late = sum(s.blender.late_frames for s in d.sessions)
     p99 = max(s.latency.percentile(99) for s in d.sessions) * 1e3
-    return dict(n=n, dropped=d.dropped_ticks, late=late, p99=p99, tick99=d.tick_lateness.percentile(99) * 1e3, cpu=cpu, wall=wall, received=received,
+    return dict(n=n, dropped=d.dropped_ticks, late=late, delay=d.settings.delay, p99=p99, tick99=d.tick_lateness.percentile(99) * 1e3, cpu=cpu, wall=wall, received=received,
                 sent=sum(s.vmc.sender.datagrams_sent for s in d.sinks), busy=d.worker.busy_seconds,
                 calls=np.percentile(d.worker.call_ms, 99) if d.worker.call_ms else 0.0)
 
 
 def bench_capacity(model, motion, seconds=8.0):
-    rows, best = [], 0
-    for n in (4, 8, 16, 24, 32, 40, 48, 64):
-        r = run_capacity(n, model, motion, seconds)
-        ok = r["dropped"] == 0
-        rows.append((n, r["dropped"], r["late"], f"{r['tick99']:.1f}", f"{r['p99']:.1f}", f"{r['calls']:.1f}",
-                     f"{r['cpu'] / r['wall'] * 100:.0f}%", f"{r['received']}/{r['sent']}", "ok" if ok else "FAIL"))
-        if ok:
-            best = n
-        else:
-            break
-    table("Capacity at hop 15 (each run %.0f s)" % seconds,
-          ("performers", "dropped ticks", "late frames", "tick start p99 ms late", "latency p99 ms", "model call p99 ms", "CPU (of 1 core)",
-           "datagrams rx/tx", ""), rows)
-    print(f"largest number of performers with zero dropped output frames: {best}")
+    """Before issue 12 (hop 15, delay 15, no slack planning: the criterion was zero dropped
+    ticks, late words were faded) against the default preset (zero dropped ticks AND
+    zero late words; the delay may grow, shown)."""
+    for label, hop, latency, legacy, strict in (("before issue 12: hop 15, delay 15", 15, "relaxed", True, False),
+                                                ("--latency default", 0, "default", False, True)):
+        rows, best = [], 0
+        for n in (4, 8, 16, 24, 32, 40, 48, 64):
+            r = run_capacity(n, model, motion, seconds, hop=hop, latency=latency, legacy=legacy)
+            ok = r["dropped"] == 0 and (r["late"] == 0 or not strict)
+            rows.append((n, r["dropped"], r["late"], r["delay"], f"{r['tick99']:.1f}", f"{r['p99']:.1f}",
+                         f"{r['calls']:.1f}", f"{r['cpu'] / r['wall'] * 100:.0f}%", f"{r['received']}/{r['sent']}",
+                         "ok" if ok else "FAIL"))
+            if ok:
+                best = n
+            else:
+                break
+        table(f"Capacity, {label} (each run {seconds:.0f} s)",
+              ("performers", "dropped ticks", "late frames", "final delay", "tick start p99 ms late", "latency p99 ms",
+               "model call p99 ms", "CPU (of 1 core)", "datagrams rx/tx", ""), rows)
+        print(f"largest number of performers with zero dropped output frames{' and zero late' if strict else ''}: "
+              f"{best}")
 
 
 def bench_compute(model, motion, seconds=10.0):
@@ -369,8 +412,8 @@ def bench_seams(model):
         actions.append(action)
         motion = humanoid_motion(clip)
         row = [path.name.split(".")[0]]
-        for col, (hop, decay) in enumerate(((0, 15), (0, 1), (15, -1.0), (1, -1.0), (60, 0.0))):
-            if hop == 0:  # the input itself, on the hop-15 and the 60-frame grid
+        for col, (hop, decay) in enumerate(((0, 15), (0, 4), (0, 1), (15, -1.0), (4, -1.0), (1, -1.0), (60, 0.0))):
+            if hop == 0:  # the input itself, on the hop-15, hop-4 and the 60-frame grid
                 sums = seam_sums(ReplaySourceRotations(motion), decay)
                 pooled[col] = pooled.get(col, 0) + sums
                 row.append(f"{ratio(sums):.3f}")
@@ -385,9 +428,10 @@ def bench_seams(model):
             pooled[col] = pooled.get(col, 0) + sums
             row.append(f"{ratio(sums):.3f}")
         rows.append(row)
-    rows.append(["ALL (pooled d_t)"] + [f"{ratio(pooled[c]):.3f}" for c in range(5)])
+    rows.append(["ALL (pooled d_t)"] + [f"{ratio(pooled[c]):.3f}" for c in range(7)])
     table("Seam ratio of the live output (paper's d_t; <= 1.10 is the goal; input ~1.0)",
-          ("clip", "input, 15-grid", "input, 60-grid", "hop 15", "hop 1 (60-grid)", "hop 60 no blend (baseline)"),
+          ("clip", "input, 15-grid", "input, 4-grid", "input, 60-grid", "hop 15 (relaxed)", "hop 4 (default)",
+           "hop 1 (low; 60-grid)", "hop 60 no blend (baseline)"),
           rows)
 
 
@@ -399,7 +443,9 @@ def ReplaySourceRotations(motion):  # noqa: N802 (reads like the source it stand
 
 
 def main(argv):
-    which = set(argv) or {"latency", "compute", "capacity", "cpu", "seams"}
+    numbers = [float(a) for a in argv if a.replace(".", "", 1).isdigit()]
+    which = {a for a in argv if not a.replace(".", "", 1).isdigit()} or {"latency", "compute", "capacity", "cpu",
+                                                                          "seams", "presets"}
     import scipy
 
     print("machine: " + describe(f"scipy {scipy.__version__}"))
@@ -411,9 +457,11 @@ def main(argv):
     if "compute" in which:
         bench_compute(model, motion)
     if "capacity" in which:
-        bench_capacity(model, motion)
+        bench_capacity(model, motion, numbers[0] if numbers else 8.0)
     if "cpu" in which:
         bench_cpu(model, motion)
+    if "presets" in which:
+        bench_presets(model, motion, int(numbers[0]) if numbers else 8, numbers[1] if len(numbers) > 1 else 8.0)
     if "seams" in which:
         bench_seams(model)
 

@@ -42,8 +42,14 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out-input", dest="out_input", action="append", default=None, metavar="URL",
                    help="vmc://HOST:PORT for the unrestyled input (before/after views)")
     p.add_argument("--record", default=None, metavar="FILE.bvh", help="record the restyled humanoid motion")
-    p.add_argument("--hop", type=int, default=None, help="frames between motion words, 1..60 (default 15)")
-    p.add_argument("--delay", type=int, default=None, help="output delay in frames, >= hop (default: hop)")
+    from .latency import LATENCY_PRESETS  # small: no numpy, no torch
+
+    p.add_argument("--latency", default=None, choices=tuple(LATENCY_PRESETS),
+                   help="hop and delay preset: " + "; ".join(f"{k}: {v.about}" for k, v in LATENCY_PRESETS.items())
+                        + "; --hop and --delay override it")
+    p.add_argument("--hop", type=int, default=None, help="frames between motion words, 1..60 (default: the preset's)")
+    p.add_argument("--delay", type=int, default=None,
+                   help="output delay in frames, >= hop (default: the preset's; raised when the model is too slow)")
     p.add_argument("--decay", type=float, default=None, help="seam offset time constant in frames")
     p.add_argument("--crossfade", type=float, default=None, help="seconds of every fade (default 0.5)")
     p.add_argument("--intensity", type=float, default=None, help="0..1 (default 1)")
@@ -60,10 +66,15 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unbundled", dest="bundled", action="store_false", default=None,
                    help="send one OSC message per datagram (for receivers without bundle support)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes to spread the performers over, each with its own model (default 1)")
+    p.add_argument("--device", default=None,
+                   help="where the model runs: auto (CUDA when present, the default), cpu, cuda or cuda:N")
 
 
-_CONFIG_KEYS = ("source", "out", "out_input", "record", "hop", "delay", "decay", "crossfade", "intensity",
-                "bypass", "model", "direction", "control", "allow", "status_interval", "bundled", "duration")
+_CONFIG_KEYS = ("source", "out", "out_input", "record", "latency", "hop", "delay", "decay", "crossfade", "intensity",
+                "bypass", "model", "direction", "control", "allow", "status_interval", "bundled", "duration",
+                "device", "workers")
 
 
 def _config(args):
@@ -82,9 +93,13 @@ def _setup_logging() -> None:
 
 def cmd_serve(args) -> int:
     from .runner import run_daemon
+    from .workers import run_workers
 
     _setup_logging()
-    return run_daemon(_config(args))
+    config = _config(args)
+    if config.workers > 1 and len(config.source) > 1:
+        return run_workers(config)
+    return run_daemon(config)
 
 
 def cmd_demo(args) -> int:

@@ -4,7 +4,7 @@ The TOML file uses the flag names with underscores, for example::
 
     source = ["bvh:///clips/walk.bvh?loop=1"]
     out = ["vmc://127.0.0.1:39539"]
-    hop = 15
+    latency = "low"
     intensity = 0.8
     model = "normal2exhausted"
     control = "127.0.0.1:39570"
@@ -21,7 +21,6 @@ from pathlib import Path
 
 from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.errors import UserError
-from stylecast.motion.words import DEFAULT_HOP
 
 from .control import DEFAULT_ALLOW, DEFAULT_CONTROL_PORT
 
@@ -34,8 +33,9 @@ class DaemonConfig:
     out: list[str] = field(default_factory=list)
     out_input: list[str] = field(default_factory=list)
     record: str = ""
-    hop: int = DEFAULT_HOP
-    delay: int = 0  # frames; 0 = the hop (the minimum)
+    latency: str = "default"  # a preset of hop and delay (daemon.latency.LATENCY_PRESETS)
+    hop: int = 0  # frames; 0 = the latency preset's
+    delay: int = 0  # frames; 0 = the preset's when the hop is too, else the hop (the minimum)
     decay: float = -1.0  # seam offset time constant in frames; -1 = the blender's default
     crossfade: float = 0.5  # seconds of every pass-through <-> restyled fade
     intensity: float = 1.0
@@ -47,8 +47,18 @@ class DaemonConfig:
     status_interval: float = 5.0
     bundled: bool = True
     duration: float = 0.0  # seconds; 0 = until stopped
+    device: str = "auto"  # where the model runs: auto (CUDA when present), cpu, cuda[:N]
+    workers: int = 1  # processes the performers are spread over (daemon.workers)
 
     def validate(self) -> "DaemonConfig":
+        from .latency import LATENCY_PRESETS
+
+        preset = LATENCY_PRESETS.get(self.latency)
+        if preset is None:
+            raise UserError(f"--latency {self.latency!r} is not a preset; use one of {', '.join(LATENCY_PRESETS)}")
+        if self.hop == 0:  # the preset's hop, and its delay unless one was given
+            self.hop = preset.hop
+            self.delay = self.delay or preset.hop + preset.slack - 1
         if not 1 <= self.hop <= 60:
             raise UserError(f"--hop {self.hop} is out of range; use 1 to 60 frames")
         if self.delay and self.delay < self.hop:
@@ -59,6 +69,11 @@ class DaemonConfig:
             raise UserError(f"--crossfade {self.crossfade} is out of range; use 0 to 60 seconds")
         if self.status_interval <= 0:
             raise UserError("--status-interval must be positive")
+        if not 1 <= self.workers <= 256:
+            raise UserError(f"--workers {self.workers} is out of range; use 1 to 256 processes")
+        from stylecast.models.device import check_device_name
+
+        self.device = check_device_name(self.device)
         return self
 
     @property

@@ -62,9 +62,9 @@ def find_clip(given: str | None) -> Path:
                     "directory, and this install lacks its shipped clip); pass one: stylecast demo path/to/clip.bvh")
 
 
-def demo_restyler(name: str):
+def demo_restyler(name: str, device: str = "auto"):
     try:
-        return load_restyler(name)
+        return load_restyler(name, device)
     except Exception as exc:  # missing checkpoint, torch trouble: the demo still runs
         reason = str(exc).rstrip(".")
         print(f"stylecast demo: model {name!r} is not available ({reason}); running without restyling "
@@ -105,7 +105,7 @@ def run_demo(args, config: DaemonConfig) -> int:
     if not config.out_input:
         config.out_input = [f"vmc://127.0.0.1:{DEFAULT_INPUT_PORT}"]
     model = config.model or DEFAULT_MODEL
-    restyler = demo_restyler(model)
+    restyler = demo_restyler(model, config.device)
     source = ReplaySource(humanoid_motion(read_bvh(clip_path)), clip_path.name.split(".")[0],
                           loop=True, speed=args.speed)
     print(f"stylecast demo: replaying {clip_path} (looping) -> {', '.join(config.out)}; "

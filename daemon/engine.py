@@ -8,10 +8,13 @@ Latency model (``motion.words`` has the derivation):
   frame: output frame t leaves on the tick ``delay`` frames after input frame t arrived
   (delay >= hop, default hop), so the added latency is delay/60 s plus the processing
   time of the tick (a replayed source arrives on the ticks themselves).
-* The word ending at e is first needed on the tick after frame e arrived: the model gets
-  one frame period (16.7 ms). A word that is not back by then is *late*: the blender
-  fades that stretch to pass-through and blends back in when words return (counted per
-  performer as late frames). The output clock never waits for the model.
+* The word ending at e is first needed delay - hop + 1 ticks after frame e arrived (the
+  model's *slack*). The slack is chosen so words are on time (``daemon.latency``): the
+  model is timed before the clock starts, and the delay is raised, with one status line,
+  when the measured time from a tick to its results no longer fits. A word that is
+  still not back in time is *late*: the blender fades that stretch to pass-through and
+  blends back in when words return (counted per performer as late frames). The output
+  clock never waits for the model.
 * A tick that starts late (machine busy) still goes out, as soon as possible; a tick
   more than ``MAX_BACKLOG_TICKS`` periods late is dropped instead of bunched: its output
   frames are counted as dropped, the sessions skip the matching input frames, and the
@@ -40,6 +43,7 @@ from .commands import apply_command
 from .config import FPS, DaemonConfig
 from .control import ControlServer
 from .inference import InferenceWorker
+from .latency import MAX_SLACK, calibrate, delay_line, slack_for
 from .output import PerformerSinks, open_outputs, recording_path
 from .restylers import load_restyler, model_name, style_label, with_direction
 from .session import Session
@@ -52,6 +56,12 @@ MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not s
 
 
 BATCH_GROUP = 8  # performers whose words share one model call
+PLAN_EVERY_TICKS = 60  # how often the slack planner's estimate is checked (1 s)
+# torch's CPU threads for the live model. More than one makes its threads wait on each
+# other and on the output loop: on this project's shared 2-core machine, 8 words took
+# 575 ms with 2 threads against 11.5 ms with one (issue 12). Batches, not threads, are
+# how the live path scales (and worker processes, one per core).
+LIVE_TORCH_THREADS = 1
 
 
 def stagger_phase(hop: int, k: int, performers: int) -> int:
@@ -68,14 +78,27 @@ def stagger_phase(hop: int, k: int, performers: int) -> int:
     return (k // BATCH_GROUP) * hop // groups
 
 
+def _limit_torch_threads() -> None:
+    import sys
+
+    torch = sys.modules.get("torch")  # only a model that uses torch has imported it
+    if torch is not None and torch.get_num_threads() > LIVE_TORCH_THREADS:
+        torch.set_num_threads(LIVE_TORCH_THREADS)
+
+
 class Daemon:
     def __init__(self, config: DaemonConfig, sources: list, restyler, clock: Clock, *,
-                 tap=None, frame_taps=None, model_loader=load_restyler, log_status: bool = True):
+                 tap=None, frame_taps=None, model_loader=None, log_status: bool = True,
+                 first_index: int = 0, remote=None):
+        """``first_index``: the global index of this daemon's first performer (output ports
+        and recording names count from it); ``remote``: a connection to the parent of a
+        worker process (``daemon.workers``), which forwards control and asks for status."""
         if not sources:
             raise UserError("no source given; add one such as --source bvh:///path/clip.bvh?loop=1")
         self.config = config.validate()
         self.clock = clock
-        self.model_loader = model_loader
+        # /stylecast/model loads onto the device the daemon was started with.
+        self.model_loader = model_loader or (lambda name: load_restyler(name, config.device))
         self.log_status = log_status
         self.settings = BlendSettings(
             hop=config.hop, delay=config.delay or None,
@@ -85,7 +108,11 @@ class Daemon:
         self.sinks: list[PerformerSinks] = []
         if config.direction:
             restyler = with_direction(restyler, config.direction)
-        self.worker = InferenceWorker(restyler)
+        self.worker = InferenceWorker(restyler, clock=clock.now)
+        self.delay_notes: list[str] = []  # the status lines of delay raises (also logged)
+        self.first_index = first_index
+        self.remote = remote
+        self.remote_stopped = False
         self.control: ControlServer | None = None
         self.style = style_label(restyler)
         self.ticks = 0
@@ -124,9 +151,9 @@ class Daemon:
             bundled = self.config.bundled
             self.sinks.append(PerformerSinks(
                 skeleton.offsets,
-                outputs=open_outputs(self.config.out, k, bundled, tap),
-                inputs=open_outputs(self.config.out_input, k, bundled),
-                recorder=self._recorder(k, skeleton),
+                outputs=open_outputs(self.config.out, self.first_index + k, bundled, tap),
+                inputs=open_outputs(self.config.out_input, self.first_index + k, bundled),
+                recorder=self._recorder(self.first_index + k, skeleton),
                 frame_taps=frame_taps))
         address = self.config.control_address()
         if address is not None:
@@ -141,10 +168,58 @@ class Daemon:
 
     # -- the clock ----------------------------------------------------------------------
     def start(self) -> None:
+        if not self.clock.virtual:
+            _limit_torch_threads()
+            self._calibrate()
         self._t0 = self.clock.now()
         self._next_status = self._t0 + self.config.status_interval
         for s in self.sessions:
             s.source.start(self._t0)
+
+    # -- slack: every word on time (daemon.latency) ----------------------------------------
+    @property
+    def slack(self) -> int:
+        return self.settings.delay - self.settings.hop + 1
+
+    def words_per_tick(self) -> int:
+        """The most words one tick hands the model: the performers sharing a word phase."""
+        phases = [s.settings.phase for s in self.sessions]
+        return max(phases.count(p) for p in set(phases))
+
+    def _calibrate(self) -> None:
+        """Time the model on one tick's batch before the clock starts; start with a slack
+        that covers it (twice over: live, the output loop competes for the CPU)."""
+        from .latency import CALIBRATION_FACTOR
+
+        batch = self.words_per_tick()
+        try:
+            seconds = calibrate(self.worker.restyler, batch, len(HUMANOID_BONES), repeats=2)
+        except Exception as exc:  # a broken model is the worker's to count, not a startup crash
+            log.warning("model timing before start failed (%s); keeping delay %d", exc, self.settings.delay)
+            return
+        self._raise_slack(slack_for(seconds, CALIBRATION_FACTOR),
+                          f"one call on {batch} word(s) takes {seconds * 1e3:.1f} ms")
+
+    def _plan_slack(self) -> None:
+        needed = self.worker.planner.needed_slack()
+        if needed is not None:
+            self._raise_slack(needed, f"results ready {self.worker.planner.estimate_ms():.1f} ms after their "
+                                      f"tick (p95)")
+
+    def _raise_slack(self, needed: int, reason: str) -> None:
+        if needed <= self.slack:
+            return
+        capped = needed > MAX_SLACK
+        hop, old = self.settings.hop, self.settings.delay
+        new = hop - 1 + min(needed, MAX_SLACK)
+        if new <= old:
+            return
+        self.settings.delay = new
+        for s in self.sessions:
+            s.set_delay(new)
+        line = delay_line(reason, hop, old, new, capped)
+        self.delay_notes.append(line)
+        log.warning(line)
 
     def tick_time(self, k: int) -> float:
         return self._t0 + k / FPS
@@ -158,7 +233,7 @@ class Daemon:
     def run(self, stop: threading.Event | None = None, duration: float = 0.0) -> None:
         if self._t0 is None:
             self.start()
-        while not (stop is not None and stop.is_set()) and not self.finished:
+        while not (stop is not None and stop.is_set()) and not self.finished and not self.remote_stopped:
             if duration and self.ticks / FPS >= duration:
                 break
             self.clock.sleep_until(self.tick_time(self.ticks))
@@ -197,7 +272,7 @@ class Daemon:
         for session in self.sessions:
             for end, word in session.ingest(now):
                 batch.append((session.index, end, word))
-        self.worker.submit(batch)
+        self.worker.submit(batch, now)
         vmc_time = self.ticks / FPS
         for session, sinks in zip(self.sessions, self.sinks):
             if session.skeleton_changed:  # the performer's own proportions, from now on
@@ -210,6 +285,8 @@ class Daemon:
             if session.new_frame:
                 session.latency.add(self.clock.now() - frame.arrival)
         self.ticks += 1
+        if not self.clock.virtual and self.ticks % PLAN_EVERY_TICKS == 0:
+            self._plan_slack()
         if self.clock.now() >= self._next_status:
             self._next_status += self.config.status_interval
             if self.log_status:
@@ -224,6 +301,8 @@ class Daemon:
             self.worker.set_restyler(model)
             self.style = style_label(model)
             log.info("model %s is live", self.style)
+        if self.remote is not None:
+            self._serve_remote()
         if self.control is None:
             return
         self._status_replies = 0
@@ -232,6 +311,23 @@ class Daemon:
                 self.apply(command, value, performer, addr)
             except UserError as exc:
                 self._control_error(str(exc))
+
+    def _serve_remote(self) -> None:
+        """A worker process: apply what the parent forwards, answer its status requests."""
+        try:
+            while self.remote.poll():
+                kind, *args = self.remote.recv()
+                if kind == "status":
+                    self.remote.send(("status", self.snapshot()))
+                elif kind == "apply":
+                    try:
+                        self.apply(*args)
+                    except UserError as exc:
+                        self._control_error(str(exc))
+                elif kind == "stop":
+                    self.remote_stopped = True
+        except (EOFError, OSError):  # the parent is gone: stop cleanly
+            self.remote_stopped = True
 
     def apply(self, command: str, value, performer: str | None = None, reply_to=None) -> None:
         """Apply one setting live (also the API tests and embedders use); the commands
@@ -291,6 +387,8 @@ class Daemon:
         performers = [s.counters() for s in self.sessions]
         return {"daemon": {"style": self.style, "model": model_name(self.worker.restyler),
                            "performers": len(self.sessions), "ticks": self.ticks,
+                           "hop": self.settings.hop, "delay": self.settings.delay,
+                           "model_ready_p95_ms": round(self.worker.planner.estimate_ms(), 2),
                            "dropped_ticks": self.dropped_ticks, "faults": self.worker.faults,
                            "control_refused": self.control.refused if self.control else 0},
                 "performers": performers}

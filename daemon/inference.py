@@ -13,6 +13,11 @@ A call that raises, returns the wrong shape, or returns non-finite or zero-lengt
 quaternions is a *fault*: the affected words are simply never delivered, so the seam
 blender treats them as late and fades that stretch to pass-through; the fault is
 counted, the worker carries on.
+
+Every job carries the scheduled time of the tick that submitted it; when its results
+are ready the worker records how long after that tick they came (``planner``: model
+call, queueing and CPU contention together), which is what the engine's delay must cover
+(``daemon.latency``).
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ from collections import deque
 
 import numpy as np
 
+from .latency import SlackPlanner
+
 log = logging.getLogger("stylecast.daemon")
 # Jobs (one per tick that completed words) waiting for a busy model. A slow or hung model
 # must not make this queue, and the merged catch-up batch behind it, grow without bound:
@@ -33,9 +40,12 @@ MAX_QUEUED_JOBS = 16
 
 
 class InferenceWorker:
-    def __init__(self, restyler):
+    def __init__(self, restyler, clock=time.monotonic):
         self._restyler = restyler
+        self._clock = clock  # the engine's clock: ready times are compared with its ticks
+        self.planner = SlackPlanner()
         self._jobs: deque = deque()  # lists of (session index, end, word)
+        self._job_ticks: deque = deque()  # the scheduled tick time of each job, in step
         self._results: deque = deque()  # (session index, end, restyled word)
         self._failed: deque = deque()  # (session index, end) of words lost to a fault
         self._cond = threading.Condition()
@@ -60,14 +70,17 @@ class InferenceWorker:
         """Swap the model; jobs already running finish with the old one."""
         self._restyler = restyler
 
-    def submit(self, items: list[tuple[int, int, np.ndarray]]) -> None:
+    def submit(self, items: list[tuple[int, int, np.ndarray]], tick_time: float | None = None) -> None:
+        """Queue one tick's words; ``tick_time``: that tick's scheduled time (default now)."""
         if not items:
             return
         with self._cond:
             self._jobs.append(items)
+            self._job_ticks.append(self._clock() if tick_time is None else tick_time)
             self._pending += 1
             while len(self._jobs) > MAX_QUEUED_JOBS:  # hardening: see MAX_QUEUED_JOBS
                 stale = self._jobs.popleft()
+                self._job_ticks.popleft()
                 self._pending -= 1
                 self.stale_words += len(stale)
                 self._failed.extend((s, end) for s, end, _ in stale)
@@ -98,12 +111,16 @@ class InferenceWorker:
                 self._cond.wait_for(lambda: self._jobs or self._closing)
                 if self._closing:
                     return
-                items, merged = [], 0
+                items, ticks = [], []
                 while self._jobs:
                     items += self._jobs.popleft()
-                    merged += 1
+                    ticks.append(self._job_ticks.popleft())
+                merged = len(ticks)
             try:
                 self._process(items)
+                done = self._clock()
+                for tick in ticks:
+                    self.planner.add(done - tick)
             finally:
                 with self._cond:
                     self._pending -= merged

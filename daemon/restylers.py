@@ -50,7 +50,8 @@ class StandInRestyler:
         return (per_frame * Rotation.from_quat(w.reshape(-1, 4))).as_quat().reshape(B, T, J, 4)
 
 
-def load_restyler(name: str):
+def load_restyler(name: str, device: str = "cpu"):
+    """``device``: where a trained model runs (auto, cpu, cuda[:N]); stand-ins are numpy."""
     if name in ("identity", "none"):
         return IdentityRestyler()
     if name == "standin":
@@ -64,7 +65,7 @@ def load_restyler(name: str):
     except ImportError:
         raise UserError(f"model {name!r} cannot be loaded: stylecast.models has no Restyler in this "
                         f"install; use --model identity to run without restyling") from None
-    return restyler_cls.load(name)
+    return restyler_cls.load(name, device=device)
 
 
 def model_name(restyler) -> str:

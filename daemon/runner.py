@@ -21,10 +21,12 @@ from .restylers import load_restyler
 log = logging.getLogger("stylecast.daemon")
 
 
-def open_sources(urls: list[str]) -> list:
+def open_sources(urls: list[str], first_index: int = 0) -> list:
+    """Sources for ``urls``; unnamed ones are p{k}, k counted from ``first_index`` (a
+    worker process serving performers first_index.. of the whole daemon)."""
     sources = []
     try:
-        for k, url in enumerate(urls):
+        for k, url in enumerate(urls, start=first_index):
             sources.append(open_source(url, f"p{k}"))
     except BaseException:
         for s in sources:
@@ -50,7 +52,7 @@ def run_daemon(config: DaemonConfig, restyler=None, sources=None, stop: threadin
         sources = open_sources(config.source)  # cheap errors (bad URL, missing file) first
     if restyler is None:
         try:
-            restyler = load_restyler(config.model)
+            restyler = load_restyler(config.model, config.device)
         except BaseException:
             for s in sources:
                 s.close()

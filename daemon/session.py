@@ -147,6 +147,11 @@ class Session:
         self.words += 1
         return [out]
 
+    def set_delay(self, delay: int) -> None:
+        """A longer delay (the engine's slack planner): output holds until it is reached."""
+        self.settings.delay = delay
+        self._inputs = deque(self._inputs, maxlen=delay + MAX_LAG + 2)
+
     def set_bypass(self, bypass: bool) -> None:
         if self.bypass and not bypass:
             # The next word the model will see is the next one the cutter emits.

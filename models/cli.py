@@ -62,6 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "pre-roll): the same frames `stylecast serve` sends for this clip")
     p.add_argument("--map", type=Path, help="JSON/TOML table of source joint name -> humanoid bone")
     p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
+    p.add_argument("--device", default="auto", help="where the model runs: auto (CUDA when present), cpu or cuda[:N]")
     p.set_defaults(func=run_restyle)
 
     p = sub.add_parser("eval", help="judge a model on held-out files: style, action, FMD, jerk, foot slide, "
@@ -88,10 +89,12 @@ def _threads(n):
 
 
 def run_train(args) -> int:
+    from .device import pick_device
     from .networks import NetworkConfig
     from .train import TrainConfig, load_training_words, train
 
     _threads(args.threads)
+    pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss, epochs=args.epochs,
                       batch_size=args.batch_size, words_per_epoch=args.words_per_epoch, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram)
@@ -119,7 +122,8 @@ def run_restyle(args) -> int:
     from stylecast.motion.words import DEFAULT_HOP
 
     info = restyle_file(args.input, args.output, model=args.model, direction=args.direction,
-                        intensity=args.intensity, hop=args.hop or DEFAULT_HOP, fps=args.fps, map_file=args.map, live=args.live)
+                        intensity=args.intensity, hop=args.hop or DEFAULT_HOP, fps=args.fps, map_file=args.map,
+                        live=args.live, device=args.device)
     print(f"wrote {args.output}: {info['joints']} joints, {info['frames']} frames at {info['fps']:g} fps "
           f"({info['model']}, {info['direction']}: {info['from']} -> {info['to']})")
     return 0

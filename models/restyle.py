@@ -121,7 +121,8 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
 
 
 def restyle_file(input_path, output_path, model=None, direction: str = "a2b", intensity: float = 1.0,
-                 hop: int = DEFAULT_HOP, fps: float | None = None, map_file=None, restyler=None, live: bool = False) -> dict:
+                 hop: int = DEFAULT_HOP, fps: float | None = None, map_file=None, restyler=None, live: bool = False,
+                 device: str = "cpu") -> dict:
     from stylecast.motion.bvh import read_bvh, write_bvh
     from stylecast.motion.humanoid import load_user_map
 
@@ -129,7 +130,7 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
 
     if fps is not None and not fps > 0:
         raise UserError(f"--fps must be positive, got {fps:g}")
-    restyler = restyler or Restyler.load(model, direction)
+    restyler = restyler or Restyler.load(model, direction, device)
     user_map = load_user_map(map_file) if map_file else None
     clip = read_bvh(Path(input_path))
     out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live)

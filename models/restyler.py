@@ -4,10 +4,13 @@
     r = Restyler.load("runs/x/model.safetensors", direction="b2a")
     out = r.restyle_words(words)              # (B, 60, 22, 4) xyzw -> same shape
 
-One call is one batched forward pass under ``torch.no_grad``: heading removal, encoding,
-generator, decoding and heading restoration are all vectorised over the batch. Nothing
-here runs per frame; the stream code (``stylecast.motion.words``) calls ``restyle_words``
-once per word or batch of words and blends in numpy.
+One call is one batched forward pass under ``torch.no_grad`` on the model's device
+(``--device``): heading removal, encoding, generator, decoding, heading restoration and
+the hemisphere fix all run in torch (``representation_torch``), vectorised over the
+batch, with no per-word Python or numpy. Numpy words in give numpy words out; a torch
+tensor stays a tensor (on the model's device). ``restyle_words_numpy`` is the numpy
+reference path the tests compare against. The stream code (``stylecast.motion.words``)
+calls ``restyle_words`` once per batch of words and blends in numpy.
 """
 
 from __future__ import annotations
@@ -20,9 +23,10 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
 
 from . import checkpoint as ckpt
+from . import representation as R
+from .device import pick_device
 
 MAX_NETWORK_SIZE = 1 << 16  # no width, depth or kernel of a live restyler comes near this
-from . import representation as R
 
 WORD_LENGTH = 60
 FPS = 60.0
@@ -38,12 +42,17 @@ class Restyler:
         self.metadata = metadata
         self.direction = direction
         self.path = path
+        self.device = next(self.model.parameters()).device
+        self._trep = None  # the representation in torch on self.device, built on first use
 
     # -- loading --------------------------------------------------------------------------
     @classmethod
     def load(cls, path_or_name=None, direction: str = "a2b", device: str = "cpu") -> "Restyler":
+        """``device``: "cpu", "cuda", "cuda:N" or "auto" (CUDA when present); a CUDA
+        device asked for on a machine without one is refused in one sentence."""
         from .networks import CycleGAN, NetworkConfig
 
+        device = pick_device(device)
         path = ckpt.resolve(path_or_name)
         tensors, meta = ckpt.read_checkpoint(path)
         ckpt.validate_metadata(path, meta, HUMANOID_BONES, WORD_LENGTH, FPS)
@@ -144,19 +153,53 @@ class Restyler:
         """Heading-free features (B, 60, J, C) -> restyled features, one batched pass."""
         import torch
 
+        x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
+        return self._generate(x.to(self.device), direction).cpu().numpy()
+
+    def _generate(self, features, direction: str | None):
+        """Features (B, 60, J, C) float32 tensor on the model's device -> restyled features."""
+        import torch
+
         from .networks import from_channels, to_channels
 
-        x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
-        device = next(self.model.parameters()).device
         with torch.no_grad():
-            y = self.generator(direction)(to_channels(x).to(device))
-        return from_channels(y, x.shape[2]).cpu().numpy()
+            y = self.generator(direction)(to_channels(features))
+        return from_channels(y, features.shape[2])
 
-    def restyle_words(self, words: np.ndarray, direction: str | None = None) -> np.ndarray:
-        """Quaternion words (B, 60, 22, 4), humanoid local rotations xyzw -> same shape."""
+    @property
+    def torch_representation(self):
+        if self._trep is None:
+            from .representation_torch import TorchRepresentation
+
+            self._trep = TorchRepresentation(self.rep, self.device)
+        return self._trep
+
+    def restyle_words(self, words, direction: str | None = None):
+        """Quaternion words (B, 60, 22, 4), humanoid local rotations xyzw -> same shape.
+        Numpy in, numpy out (float64); a torch tensor in, a float64 tensor out on the
+        model's device. One batched call on the device, nothing per word."""
+        import torch
+
+        from . import representation_torch as RT
+
+        is_tensor = isinstance(words, torch.Tensor)
+        w = words.to(self.device, RT.DTYPE) if is_tensor else \
+            torch.from_numpy(np.asarray(words, dtype=np.float64)).to(self.device)
+        _check_words_shape(tuple(w.shape))
+        if len(w) == 0:
+            out = w.clone()
+        else:
+            trep = self.torch_representation
+            flat, yaw = RT.remove_heading(w)
+            restyled = trep.decode(self._generate(trep.encode(flat), direction))
+            out = RT.same_hemisphere(RT.restore_heading(restyled, yaw), w)
+        return out if is_tensor else out.cpu().numpy()
+
+    def restyle_words_numpy(self, words: np.ndarray, direction: str | None = None) -> np.ndarray:
+        """The numpy reference of ``restyle_words`` (representation work on the host, per
+        ``representation``); kept for the tests that prove the torch path equal to it."""
         words = np.asarray(words, dtype=np.float64)
-        if words.ndim != 4 or words.shape[1:] != (WORD_LENGTH, len(HUMANOID_BONES), 4):
-            raise ValueError(f"words must have shape (B, {WORD_LENGTH}, {len(HUMANOID_BONES)}, 4), got {words.shape}")
+        _check_words_shape(words.shape)
         if len(words) == 0:
             return words.copy()
         flat, yaw = R.remove_heading(words)
@@ -168,3 +211,8 @@ class Restyler:
         return out * sign
 
     __call__ = restyle_words
+
+
+def _check_words_shape(shape: tuple) -> None:
+    if len(shape) != 4 or shape[1:] != (WORD_LENGTH, len(HUMANOID_BONES), 4):
+        raise ValueError(f"words must have shape (B, {WORD_LENGTH}, {len(HUMANOID_BONES)}, 4), got {shape}")

@@ -15,7 +15,9 @@ Files written to the output folder:
   model.safetensors/.json       the two generators only: the shippable model
 
 Deterministic on the CPU for a seed: weights come from torch.manual_seed(seed), batches
-from numpy's default_rng((seed, epoch)), torch.use_deterministic_algorithms(True).
+from numpy's default_rng((seed, epoch)), torch.use_deterministic_algorithms(True). On
+CUDA, deterministic wherever torch has a deterministic op; one line names any op that
+has none (``device.Determinism``).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
 from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
+from .device import Determinism, pick_device
 from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
 from . import representation as R
 from .representation import euler_features, get_representation
@@ -77,16 +80,6 @@ class TrainConfig:
         d = dict(d)
         d["network"] = NetworkConfig(**d.get("network", {}))
         return cls(**d)
-
-
-def pick_device(name: str = "auto"):
-    import torch
-
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if name.startswith("cuda") and not torch.cuda.is_available():
-        raise UserError(f"device {name} was asked for but CUDA is not available; use --device cpu")
-    return torch.device(name)
 
 
 def build_model(cfg: TrainConfig, reference: np.ndarray | None = None):
@@ -150,7 +143,7 @@ class Trainer:
         self.cfg = cfg
         self.device = pick_device(device)
         torch.manual_seed(cfg.seed)
-        torch.use_deterministic_algorithms(True)
+        self.determinism = Determinism(self.device)  # exact on the CPU; never raises on CUDA
         if reference is None and cfg.centre:
             reference = R.mean_reference(np.concatenate([words_a[::3], words_b[::3]]))
         self.model, self.rep = build_model(cfg, reference)
@@ -200,7 +193,8 @@ class Trainer:
         bb = _batches(len(self.words_b), cfg.words_per_epoch, cfg.batch_size, rng)
         sums: dict[str, float] = {}
         for i, (ia, ib) in enumerate(zip(ba, bb)):
-            out = self.step(self._to(self.words_a[ia]), self._to(self.words_b[ib]))
+            with self.determinism.watch():
+                out = self.step(self._to(self.words_a[ia]), self._to(self.words_b[ib]))
             for k, v in out.items():
                 sums[k] = sums.get(k, 0.0) + v
             if progress is not None:
@@ -317,6 +311,7 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
         ref = meta["representation"].get("reference")
         reference = None if ref is None else np.asarray(ref, dtype=np.float64)
     trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference)
+    trainer.determinism.log = log
     rows: list[dict] = []
     if resume:
         trainer.load_state(out)

@@ -53,7 +53,10 @@ class ContactSettings:
     release_height: float = 7.0  # let go above this
     release_speed: float = 1.5  # ...or faster than this
     floor_window: int = 240  # frames (4 s) over which the floor is the lowest ball height
-    ramp: int = 6  # frames over which a lock blends in before and out after a contact
+    # Frames over which a lock blends in before and out after a contact. It looks this far
+    # ahead, so it must not exceed the stream's delay: 4 fits serve's default (hop 4,
+    # delay 5) and restyle's (delay = hop = 4) alike, so both lock the same frames.
+    ramp: int = 4
 
 
 def leg_chain(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray):

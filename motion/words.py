@@ -44,12 +44,24 @@ import numpy as np
 from . import rotations as rot
 
 WORD_LENGTH = 60
-DEFAULT_HOP = 15  # frames between words when nobody says otherwise (serve, restyle, eval)
+DEFAULT_HOP = 4  # frames between words when nobody says otherwise: serve's default latency preset, restyle, eval
 
 
 def word_ends(num_frames: int, hop: int, word_length: int = WORD_LENGTH) -> list[int]:
     """Frame indices at which words end for a stream of ``num_frames`` frames."""
     return list(range(word_length - 1, num_frames, hop))
+
+
+def cut_words(frames: np.ndarray, hop: int, word_length: int = WORD_LENGTH,
+              phase: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Every word a ``WordCutter`` fed ``frames`` (T, J, 4) one by one would emit, in one
+    gather: (ends (N,), words (N, word_length, J, 4)), each word in one hemisphere over
+    time. Offline restyling cuts whole clips this way (the per-frame loop cost more than
+    the rest of the stream code together)."""
+    frames = np.asarray(frames, dtype=np.float64)
+    ends = np.arange(word_length - 1 + phase, len(frames), hop)
+    index = ends[:, None] + np.arange(1 - word_length, 1)[None, :]
+    return ends, rot.canonical_hemisphere(frames[index], axis=1)
 
 
 @dataclass
@@ -104,15 +116,23 @@ class BlendSettings:
         self.crossfade_frames = max(1, int(self.crossfade_frames))
 
 
-def _spring(offset: np.ndarray, velocity: np.ndarray, omega: float, n: int):
-    """A critically damped spring pulling ``offset`` to zero, n frames on, in closed form:
-    x(k) = (x0 + (v0 + w x0) k) e^(-w k). Returns x(1..n) (n, J, 3), x(n) and x'(n)."""
-    k = np.arange(1, n + 1, dtype=np.float64)[:, None, None]
+def _spring_at(offset: np.ndarray, c2: np.ndarray, omega: float, k) -> np.ndarray:
+    """A critically damped spring pulling ``offset`` to zero, k frames on, in closed form:
+    x(k) = (x0 + c2 k) e^(-w k) with c2 = v0 + w x0."""
+    return (offset + c2 * k) * np.exp(-omega * k)
+
+
+def _spring(offset: np.ndarray, velocity: np.ndarray, omega: float, k: int):
+    """The spring's offset and rate of change (J, 3) k frames on (the end of a run)."""
     c2 = velocity + omega * offset
+    k = np.float64(k)
     fade = np.exp(-omega * k)
-    x = (offset + c2 * k) * fade
-    v = (velocity - omega * c2 * k) * fade
-    return x, x[-1].copy(), v[-1].copy()
+    return (offset + c2 * k) * fade, (velocity - omega * c2 * k) * fade
+
+
+def _is_input(mix) -> bool:
+    """A run shown as pass-through needs no restyled poses."""
+    return np.isscalar(mix) and mix == 0.0
 
 
 class SeamBlender:
@@ -148,6 +168,11 @@ class SeamBlender:
     def add_word(self, end: int, restyled: np.ndarray) -> None:
         self._words[end] = rot.canonical_hemisphere(np.asarray(restyled, dtype=np.float64))
 
+    def add_words(self, ends, restyled: np.ndarray) -> None:
+        """``add_word`` for a batch (N,) / (N, T, J, 4) in one vectorised pass."""
+        for end, word in zip(ends, rot.canonical_hemisphere(np.asarray(restyled, dtype=np.float64), axis=1)):
+            self._words[int(end)] = word
+
     def serving_word(self, t: int) -> int:
         """End frame of the word that serves frame t (the first grid end >= t)."""
         first = self.settings.word_length - 1 + self.phase
@@ -161,10 +186,20 @@ class SeamBlender:
         return self.render_block(t, np.asarray(input_rotations)[None], intensity, active)[0]
 
     def render_block(self, t0: int, inputs: np.ndarray, intensity: float = 1.0, active: bool = True) -> np.ndarray:
-        """Output rotations (n, J, 4) for frames t0 .. t0+n-1 given their inputs (n, J, 4)."""
+        """Output rotations (n, J, 4) for frames t0 .. t0+n-1 given their inputs (n, J, 4).
+
+        Two passes: the first walks the runs (one per serving word) and carries the
+        blender's state from run to run with work the size of one pose per run; the
+        second renders every frame of the block in a few vectorised operations. A whole
+        clip costs a handful of array operations, not a handful per word."""
         inputs = np.asarray(inputs, dtype=np.float64)
-        out = np.empty_like(inputs)
-        t, n = t0, len(inputs)
+        runs = self._plan(t0, inputs, intensity, active)
+        self._forget_before(self.serving_word(t0 + len(inputs) - 1))
+        return self._render(runs, inputs)
+
+    def _plan(self, t0: int, inputs: np.ndarray, intensity: float, active: bool) -> list:
+        """Pass 1: per run (start, length, restyle, mix), the state carried to the next."""
+        runs, t, n = [], t0, len(inputs)
         while t < t0 + n:
             end = self.serving_word(t)
             run = min(end, t0 + n - 1) - t + 1  # frames served by this word in the block
@@ -179,50 +214,74 @@ class SeamBlender:
                 word = self._words.get(end)
                 if word is None and active:
                     self.late_frames += run  # should have arrived: fade out, never stall
-            block = slice(t - t0, t - t0 + run)
-            restyled = self._restyled_run(t, end, word, inputs[block])
-            out[block] = self._mix_run(inputs[block], restyled, word is not None and active, intensity)
+            start = t - t0
+            restyle = self._plan_restyle(t, end, word, inputs[start + run - 1], run)
+            runs.append((start, run, restyle, self._plan_mix(run, word is not None and active, intensity)))
             t += run
-        self._forget_before(self.serving_word(t0 + n - 1))
-        return out
+        return runs
 
-    def _restyled_run(self, t: int, end: int, word: np.ndarray | None, inputs: np.ndarray) -> np.ndarray:
-        """Restyled poses for a run of frames from one word, seam offset applied."""
+    def _plan_restyle(self, t: int, end: int, word: np.ndarray | None, last_input: np.ndarray, n: int) -> tuple:
+        """How a run's restyled poses are made, and the state after its last frame:
+        ("residual", r): r * input while no word serves; ("word", frames, offset, c2):
+        the word's frames under the seam spring's offset (see ``_spring``)."""
         if word is None:
             if self._serving is not None and self._last_restyled is not None:
                 self._residual = rot.multiply(self._last_restyled, rot.inverse(self._last_input))
             self._serving = None
-            poses = rot.multiply(self._residual, inputs)
-        else:
-            index = t - (end - self.settings.word_length + 1)
-            if self._omega == 0.0:
-                self._offset[:] = 0.0
-            elif end != self._serving and self._shown is not None and index > 0:
-                # Switch of word: carry the new word onto what was shown a frame ago.
-                # The offset's velocity carries over, so the motion does not kink either.
-                self._offset = rot.log_map(rot.multiply(self._shown, rot.inverse(word[index - 1])))
-            self._serving = end
-            offsets, self._offset, self._offset_velocity = _spring(
-                self._offset, self._offset_velocity, self._omega, len(inputs))
-            poses = rot.multiply(rot.exp_map(offsets), word[index:index + len(inputs)])
-            self._last_restyled, self._last_input = poses[-1], inputs[-1]
-        self._shown = poses[-1]
-        return poses
+            self._shown = rot.multiply(self._residual, last_input)
+            return ("residual", self._residual)
+        index = t - (end - self.settings.word_length + 1)
+        if self._omega == 0.0:
+            self._offset[:] = 0.0
+        elif end != self._serving and self._shown is not None and index > 0:
+            # Switch of word: carry the new word onto what was shown a frame ago.
+            # The offset's velocity carries over, so the motion does not kink either.
+            self._offset = rot.log_map(rot.multiply(self._shown, rot.inverse(word[index - 1])))
+        self._serving = end
+        offset, c2 = self._offset, self._offset_velocity + self._omega * self._offset
+        self._offset, self._offset_velocity = _spring(offset, self._offset_velocity, self._omega, n)
+        self._shown = rot.multiply(rot.exp_map(self._offset), word[index + n - 1])
+        self._last_restyled, self._last_input = self._shown, last_input
+        return ("word", word[index:index + n], offset, c2)
 
-    def _mix_run(self, inputs: np.ndarray, restyled: np.ndarray, available: bool, intensity: float) -> np.ndarray:
-        """Move ``mix`` towards its target by at most one crossfade step per frame."""
+    def _plan_mix(self, n: int, available: bool, intensity: float):
+        """Move ``mix`` towards its target by at most one crossfade step per frame:
+        1.0 (restyled), 0.0 (input) or the per-frame mix (n,) to slerp with."""
         target = min(max(float(intensity), 0.0), 1.0) if available else 0.0
         if self.mix == target and target in (0.0, 1.0):  # the common, settled case
-            return restyled if target == 1.0 else inputs.copy()
+            return target
         step = 1.0 / self.settings.crossfade_frames
-        ramp = step * np.arange(1, len(inputs) + 1)
+        ramp = step * np.arange(1, n + 1)
         mix = np.minimum(target, self.mix + ramp) if target > self.mix else np.maximum(target, self.mix - ramp)
         self.mix = float(mix[-1])
         if np.all(mix >= 1.0):
-            return restyled
+            return 1.0
         if np.all(mix <= 0.0):
-            return inputs.copy()
-        return rot.slerp(inputs, restyled, np.repeat(mix[:, None], self.num_bones, 1))
+            return 0.0
+        return mix
+
+    def _render(self, runs: list, inputs: np.ndarray) -> np.ndarray:
+        """Pass 2: every frame of the planned runs at once."""
+        out = inputs.copy()
+        word_runs = [r for r in runs if r[2][0] == "word" and not _is_input(r[3])]
+        if word_runs:
+            frames = np.concatenate([r[2][1] for r in word_runs])
+            k = np.concatenate([np.arange(1, r[1] + 1, dtype=np.float64) for r in word_runs])[:, None, None]
+            lengths = [r[1] for r in word_runs]
+            offset = np.repeat(np.stack([r[2][2] for r in word_runs]), lengths, axis=0)
+            c2 = np.repeat(np.stack([r[2][3] for r in word_runs]), lengths, axis=0)
+            poses = rot.multiply(rot.exp_map(_spring_at(offset, c2, self._omega, k)), frames)
+            at = np.concatenate([np.arange(r[0], r[0] + r[1]) for r in word_runs])
+            out[at] = poses
+        for start, n, restyle, _mix in runs:
+            if restyle[0] == "residual" and not _is_input(_mix):
+                out[start:start + n] = rot.multiply(restyle[1], inputs[start:start + n])
+        blends = [r for r in runs if not np.isscalar(r[3])]
+        if blends:
+            at = np.concatenate([np.arange(r[0], r[0] + r[1]) for r in blends])
+            mix = np.concatenate([r[3] for r in blends])
+            out[at] = rot.slerp(inputs[at], out[at], np.repeat(mix[:, None], self.num_bones, 1))
+        return out
 
     def _forget_before(self, end: int) -> None:
         for old in [e for e in self._words if e < end]:
@@ -246,17 +305,9 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     blender = SeamBlender(settings, J)
     held = max(blender.serving_word(T - 1) - (T - 1), 0)
     padded = np.concatenate([rotations, np.repeat(rotations[-1:], held, axis=0)])
-    cutter = WordCutter(settings.hop, settings.word_length, settings.phase)
-    ends, words = [], []
-    for frame in padded:
-        out = cutter.push(frame)
-        if out is not None:
-            ends.append(out[0])
-            words.append(out[1])
+    ends, words = cut_words(padded, settings.hop, settings.word_length, settings.phase)
     for i in range(0, len(words), batch):
-        restyled = restyle_words(np.stack(words[i:i + batch]))
-        for end, word in zip(ends[i:i + batch], restyled):
-            blender.add_word(end, word)
+        blender.add_words(ends[i:i + batch], restyle_words(words[i:i + batch]))
     out = blender.render_block(0, rotations, intensity)
     if feet is None:
         return out

@@ -2,8 +2,9 @@
 
 Two layers, as in python-osc (dispatcher apart from server): ``VmcParser`` is pure (feed
 it bytes and the sender's address, get completed frames; no socket, injectable time),
-and ``VmcReceiver`` owns a UDP socket and feeds a parser, either when polled or from a
-background thread.
+and ``VmcReceiver`` owns a UDP socket and feeds a parser, either when polled or from the
+process's one receive thread (``drivers.receive_hub``: a selector over every input
+socket, bounded work per wake-up, so junk at one port cannot starve the output clock).
 
 What is read (Unity space converted by ``motion.unity``, the only place that flips axes):
 
@@ -314,7 +315,6 @@ def _pose_args(tags: str, args: tuple, counters: Counter) -> tuple | None:
     return v
 
 
-THREAD_BATCH = 256  # datagrams the receiver thread reads before handing frames over
 
 
 class VmcReceiver:
@@ -323,8 +323,9 @@ class VmcReceiver:
 
     ``poll(timeout=0)`` (alias ``recv_available``) reads every datagram waiting and
     returns the completed frames, without blocking unless a timeout is given. ``start()``
-    instead runs a background thread that receives continuously; ``poll`` then returns
-    what it queued (at most ``queue_size`` frames, oldest dropped first and counted).
+    instead hands the socket to the shared receive thread (``receive_hub``), which reads
+    continuously; ``poll`` then returns what it queued (at most ``queue_size`` frames,
+    oldest dropped first and counted).
     """
 
     def __init__(self, bind: str = "127.0.0.1", port: int = 39540, *, performer_id: str | None = None,
@@ -350,8 +351,8 @@ class VmcReceiver:
         self._queue: deque[VmcFrame] = deque()
         self._queue_size = queue_size
         self._ready = threading.Condition()
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
+        self._hub = None  # the receive hub serving this socket, once started
+        self._read = 0  # datagrams the last _receive read
 
     @classmethod
     def from_url(cls, url: str, **kwargs) -> "VmcReceiver":
@@ -372,6 +373,7 @@ class VmcReceiver:
     def _receive(self, limit: int = 100_000) -> list[VmcFrame]:
         frames: list[VmcFrame] = []
         sock, feed = self._sock, self.parser.feed
+        read = 0
         for _ in range(limit):  # bounded so a flood cannot starve the caller forever
             try:
                 data, sender = sock.recvfrom(65536)
@@ -380,12 +382,19 @@ class VmcReceiver:
             except OSError:  # e.g. Windows reports an ICMP error of ours as a reset here
                 self.parser.counters["recv_error"] += 1
                 break
+            read += 1
             frames += feed(data, sender, self.clock())
         frames += self.parser.expire(self.clock())
+        self._read = read
         return frames
 
+    @property
+    def _thread(self):
+        """The receive thread serving this socket (the shared hub's), or None."""
+        return None if self._hub is None else self._hub.thread
+
     def poll(self, timeout: float = 0.0) -> list[VmcFrame]:
-        if self._thread is not None:
+        if self._hub is not None:
             with self._ready:
                 if not self._queue and timeout > 0:
                     self._ready.wait(timeout)
@@ -398,34 +407,35 @@ class VmcReceiver:
 
     recv_available = poll
 
-    def start(self) -> None:
-        if self._thread is None:
-            self._stop.clear()
-            self._thread = threading.Thread(target=self._run, name="vmc-receiver", daemon=True)
-            self._thread.start()
+    def start(self, hub=None) -> None:
+        """Receive continuously on ``hub`` (default: the process's shared receive hub)."""
+        if self._hub is None:
+            from .receive_hub import shared_hub
 
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            select.select([self._sock], [], [], 0.05)
-            # Hand frames over every THREAD_BATCH datagrams: under a sustained flood the
-            # socket never empties, and frames queued only once it had been drained (up to
-            # 100,000 datagrams) reached the daemon seconds late or not at all (hardening).
-            frames = self._receive(THREAD_BATCH)
-            if frames:
-                with self._ready:
-                    self._queue.extend(frames)
-                    overflow = len(self._queue) - self._queue_size
-                    for _ in range(max(0, overflow)):
-                        self._queue.popleft()
-                    if overflow > 0:
-                        self.parser.counters["queue_overflow"] += overflow
-                    self._ready.notify_all()
+            self._hub = hub or shared_hub()
+            self._hub.register(self._sock, self._pump)
+
+    def _pump(self, limit: int) -> int:
+        """The hub's handler: read at most ``limit`` datagrams and queue their frames.
+        Frames are handed over after every bounded read: under a sustained flood the
+        socket never empties, and frames queued only once it had been drained reached the
+        daemon seconds late or not at all (hardening, issue 7)."""
+        frames = self._receive(limit)
+        if frames:
+            with self._ready:
+                self._queue.extend(frames)
+                overflow = len(self._queue) - self._queue_size
+                for _ in range(max(0, overflow)):
+                    self._queue.popleft()
+                if overflow > 0:
+                    self.parser.counters["queue_overflow"] += overflow
+                self._ready.notify_all()
+        return self._read
 
     def stop(self) -> None:
-        if self._thread is not None:
-            self._stop.set()
-            self._thread.join()
-            self._thread = None
+        if self._hub is not None:
+            self._hub.unregister(self._sock)
+            self._hub = None
 
     def close(self) -> None:
         self.stop()

@@ -1,0 +1,105 @@
+"""Latency presets and the delay that keeps every word on time.
+
+A word cut on tick k is first needed on tick k + s, with s = delay - hop + 1 (the model's
+*slack* in frame periods; see ``motion.words``). Whether s is enough depends on the
+model, the device, the batch and the machine's load, so the daemon does not guess:
+
+* before the clock starts it times the model on a batch as large as one tick will carry
+  (``calibrate``) and starts with a slack that covers it;
+* while it runs, the inference worker records for every job how long after its tick's
+  scheduled time the result was ready (model call, queueing and contention for the
+  CPU together), and ``SlackPlanner`` raises the delay to the smallest safe one when the
+  recent 95th percentile no longer fits, with ONE status line saying why.
+
+The delay only ever grows while running (shrinking it would skip output frames); words
+that were late before a raise stay counted.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+from stylecast.motion.words import DEFAULT_HOP
+
+FPS = 60.0
+PERIOD = 1.0 / FPS
+MARGIN_FACTOR = 1.25  # headroom over the measured time: load changes, batches grow
+MARGIN_S = 0.002  # and a fixed 2 ms for the tick's own work before the collect
+CALIBRATION_FACTOR = 2.0  # startup timing runs alone; live, the output loop competes for the CPU
+MIN_SAMPLES = 30  # jobs measured before the live estimate is trusted (a one-off stall is not a trend)
+WINDOW = 600  # jobs the live estimate looks back over (10 s at one job per tick)
+QUANTILE = 95
+MAX_SLACK = 60  # ticks (1 s): past this the model is hopeless for live use; said so, not chased
+
+
+@dataclass(frozen=True)
+class LatencyPreset:
+    hop: int  # frames between words
+    slack: int  # frame periods the model gets per word at the start (delay = hop + slack - 1)
+    about: str
+
+
+# --latency NAME. "default": <= 100 ms p99 added latency (83 ms of delay); "low": <= 35 ms
+# (one frame of delay, a word every frame); "relaxed": the pre-issue-12 default, for slow
+# machines and many performers.
+LATENCY_PRESETS = {
+    "default": LatencyPreset(hop=DEFAULT_HOP, slack=2, about=f"hop {DEFAULT_HOP}, delay {DEFAULT_HOP + 1} frames "
+                                                              f"({(DEFAULT_HOP + 1) / FPS * 1e3:.0f} ms)"),
+    "low": LatencyPreset(hop=1, slack=1, about="hop 1, delay 1 frame (17 ms)"),
+    "relaxed": LatencyPreset(hop=15, slack=1, about="hop 15, delay 15 frames (250 ms)"),
+}
+
+
+def slack_for(seconds: float, factor: float = MARGIN_FACTOR) -> int:
+    """Frame periods a word needs when its result is ready ``seconds`` after its tick."""
+    return max(1, math.ceil((seconds * factor + MARGIN_S) / PERIOD - 1e-9))
+
+
+def calibrate(restyler, batch: int, joints: int = 22, repeats: int = 3) -> float:
+    """Seconds one model call on ``batch`` words takes (median after a warm-up call)."""
+    import time
+
+    import numpy as np
+
+    words = np.zeros((max(1, batch), 60, joints, 4))
+    words[..., 3] = 1.0
+    restyler.restyle_words(words)  # warm-up: first calls allocate, load kernels, fill caches
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        restyler.restyle_words(words)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+class SlackPlanner:
+    """Watches when results become ready and says when the delay must grow."""
+
+    def __init__(self):
+        self.ready_after: deque = deque(maxlen=WINDOW)  # seconds after the submitting tick
+
+    def add(self, seconds: float) -> None:
+        self.ready_after.append(seconds)
+
+    def needed_slack(self) -> int | None:
+        """The smallest safe slack by the recent jobs, or None while too few are known."""
+        if len(self.ready_after) < MIN_SAMPLES:
+            return None
+        import numpy as np
+
+        return slack_for(float(np.percentile(self.ready_after, QUANTILE)))
+
+    def estimate_ms(self) -> float:
+        import numpy as np
+
+        return float(np.percentile(self.ready_after, QUANTILE)) * 1e3 if self.ready_after else 0.0
+
+
+def delay_line(reason: str, hop: int, old: int, new: int, capped: bool) -> str:
+    """The one status line for a raised delay."""
+    cap = (f"; capped at {new} frames, so some words will still be late: use a faster --device, a larger "
+           f"--hop or fewer performers" if capped else "")
+    return (f"model too slow for hop {hop} with delay {old} ({reason}); delay raised to {new} frames "
+            f"({new * 1000 / FPS:.0f} ms added latency) so every word is on time{cap}")

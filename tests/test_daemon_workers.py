@@ -1,0 +1,78 @@
+"""``serve --workers N`` (issue 12): performers spread over worker processes; the parent's
+control port routes commands and gathers one status for all performers."""
+
+from __future__ import annotations
+
+import queue
+import socket
+import threading
+import time
+
+import pytest
+from pythonosc.osc_bundle import OscBundle
+from pythonosc.osc_message import OscMessage
+
+from stylecast.daemon.config import build_config
+from stylecast.daemon.workers import merge_snapshots, run_workers, split
+from stylecast.motion.bvh import write_bvh
+
+from .test_daemon import walk_clip
+from .test_daemon_control import osc
+
+
+def test_split_is_contiguous_balanced_and_never_empty():
+    assert split(5, 2) == [range(0, 2), range(2, 5)] or split(5, 2) == [range(0, 3), range(3, 5)]
+    assert split(3, 8) == [range(0, 1), range(1, 2), range(2, 3)]
+    parts = split(64, 2)
+    assert [len(p) for p in parts] == [32, 32] and parts[0].stop == parts[1].start
+
+
+def test_merged_status_lists_every_performer():
+    a = {"daemon": {"style": "x", "model": "m", "performers": 2, "ticks": 10, "dropped_ticks": 1, "faults": 0,
+                    "control_refused": 0}, "performers": [{"performer": "p0"}, {"performer": "p1"}]}
+    b = {"daemon": {**a["daemon"], "performers": 1, "ticks": 12, "dropped_ticks": 2}, "performers": [{"performer": "p2"}]}
+    m = merge_snapshots([a, b], control_refused=3)
+    assert m["daemon"]["performers"] == 3 and m["daemon"]["dropped_ticks"] == 3 and m["daemon"]["ticks"] == 12
+    assert m["daemon"]["control_refused"] == 3 and [p["performer"] for p in m["performers"]] == ["p0", "p1", "p2"]
+
+
+def messages(datagram: bytes) -> list[tuple[str, list]]:
+    if OscBundle.dgram_is_bundle(datagram):
+        return [(m.address, m.params) for m in OscBundle(datagram)]
+    m = OscMessage(datagram)
+    return [(m.address, m.params)]
+
+
+@pytest.mark.slow
+def test_two_workers_serve_four_performers_behind_one_control_port(tmp_path):
+    clip = tmp_path / "walk.bvh"
+    write_bvh(walk_clip(300), clip)
+    cfg = build_config({}, {"source": [f"bvh://{clip}?loop=1"] * 4, "model": "identity", "workers": 2,
+                            "control": "127.0.0.1:0", "status_interval": 3600.0})
+    stop, started = threading.Event(), queue.Queue()
+    runner = threading.Thread(target=run_workers, args=(cfg, stop, started.put), daemon=True)
+    runner.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.bind(("127.0.0.1", 0))
+    client.settimeout(3.0)
+    try:
+        control = started.get(timeout=120)
+        client.sendto(osc("/stylecast/intensity", 0.5, "p3"), control.address)
+        client.sendto(osc("/stylecast/bypass", 1, "nobody"), control.address)  # refused, logged, harmless
+        performers = []
+        for _ in range(100):  # until the command has reached p3's worker and every clock runs
+            client.sendto(osc("/stylecast/status"), control.address)
+            reply = messages(client.recvfrom(65536)[0])
+            performers = {p[0]: p for a, p in reply if a == "/stylecast/status/performer"}
+            if performers.get("p3", [0] * 10)[9] == 0.5 and all(p[2] > 0 for p in performers.values()):
+                break
+            time.sleep(0.05)
+        daemon = [p for a, p in reply if a == "/stylecast/status/daemon"][0]
+    finally:
+        stop.set()
+        runner.join(30)
+        client.close()
+    assert not runner.is_alive()
+    assert sorted(performers) == ["p0", "p1", "p2", "p3"] and daemon[2] == 4
+    assert performers["p3"][9] == 0.5 and all(performers[p][9] == 1.0 for p in ("p0", "p1", "p2"))
+    assert all(performers[p][2] > 0 for p in performers)  # every worker's clock sent frames
