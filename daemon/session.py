@@ -36,6 +36,7 @@ from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.footlock import FootLock
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
+from stylecast.motion.smoothing import CorrectionFilter
 from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter
 
 from .status import LatencyWindow
@@ -67,6 +68,7 @@ class Session:
         # Planted feet of the input stay planted in the output (after the blender, as
         # offline ``restyle`` does); it looks ahead into the ``delay`` frames buffered.
         self.feet = FootLock.for_stream(skeleton, settings.delay)
+        self.smoothing = CorrectionFilter(len(skeleton), settings.correction_tau)
         self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
         self.frames_in = 0
         self.out_t: int | None = None  # next output frame index
@@ -204,7 +206,8 @@ class Session:
         _, arrival, root, input_rot = self._input(t)
         active = (not self.bypass) and self.blender.serving_word(t) >= self._resume_end
         rotations = self.blender.render(t, input_rot, self.intensity, active)
-        rotations = self.feet.apply(t, root, input_rot[None], rotations[None])[0]
+        rotations = self.smoothing.apply(input_rot[None], rotations[None])
+        rotations = self.feet.apply(t, root, input_rot[None], rotations)[0]
         self.out_t = t + 1
         self.frames_out += 1
         frame = OutputFrame(self.performer, t, arrival, root, rotations, input_rot)

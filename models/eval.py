@@ -70,6 +70,7 @@ class Variant:
     restyle_words: object  # (B, 60, J, 4) -> (B, 60, J, 4), or None for the input itself
     note: str
     lock_feet: bool = True  # the product always locks; one row shows what the lock does
+    smooth: bool = True  # ...and low-passes the correction; one row shows what that does
 
 
 # --- the paper's smoothness and the seams ----------------------------------------------------
@@ -131,6 +132,8 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
         out.append(Variant(name, Restyler.load(path, proposed.direction).restyle_words, f"`{path}`"))
     out.append(Variant("proposed-unlocked", proposed.restyle_words, "the model under test without the foot lock",
                        lock_feet=False))
+    out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
+                       "the model under test without the correction low-pass", smooth=False))
     out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test)"))
     return out
 
@@ -232,7 +235,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
                 roots = m.root_positions.astype(np.float64)
                 lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
                 res = inp if variant.restyle_words is None else restyle_rotations(
-                    inp, variant.restyle_words, hop, live=live, **lock)
+                    inp, variant.restyle_words, hop, live=live, correction_tau=None if variant.smooth else 0.0, **lock)
                 mask = switch_mask(len(res), hop, live)[skip:]
                 inp, res, roots = inp[skip:], res[skip:], roots[skip:]
                 per_clip.append(_clip_measures(inp, res, roots, skeleton))

@@ -213,10 +213,12 @@ def euler_features(quats: np.ndarray, reference: np.ndarray | None = None) -> np
 def word_heading(words: np.ndarray, hips: int = 0) -> np.ndarray:
     """Yaw (radians, about +Y) of the Hips' forward axis at each word's centre frame.
 
-    words: (B, T, J, 4) -> (B,)."""
-    centre = words[:, words.shape[1] // 2, hips]
-    fwd = rot.apply(centre, np.array([0.0, 0.0, 1.0]))
-    return np.arctan2(fwd[:, 0], fwd[:, 2])
+    words: (B, T, J, 4) -> (B,). The rotated +Z axis is the rotation matrix's third
+    column, written homogeneously (scaled by |q|^2, which atan2 ignores); the torch path
+    (``representation_torch.word_heading``) uses the same expression, so both give the
+    same bits."""
+    x, y, z, w = np.moveaxis(np.asarray(words)[:, words.shape[1] // 2, hips], -1, 0)
+    return np.arctan2(2.0 * (x * z + y * w), w * w + z * z - x * x - y * y)
 
 
 def _yaw_quats(yaw: np.ndarray) -> np.ndarray:

@@ -59,7 +59,8 @@ def word_switches(num_frames: int, hop: int, crossfade_frames: int = CROSSFADE_F
 
 def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_HOP, intensity: float = 1.0,
                       crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
-                      live: bool = False, roots: np.ndarray | None = None, skeleton=None) -> np.ndarray:
+                      live: bool = False, roots: np.ndarray | None = None, skeleton=None,
+                      correction_tau: float | None = None) -> np.ndarray:
     """Humanoid rotations (T, J, 4) at 60 fps -> restyled (T, J, 4), any T >= 1.
     ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
     mirrored padding, so the result is frame for frame what the daemon sends for the same
@@ -72,7 +73,8 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
     if not 1 <= hop <= WORD_LENGTH:
         raise UserError(f"--hop must be between 1 and {WORD_LENGTH} frames, got {hop}")
     T = len(rotations)
-    settings = BlendSettings(hop=hop, crossfade_frames=crossfade_frames, decay_frames=decay_frames)
+    settings = BlendSettings(hop=hop, crossfade_frames=crossfade_frames, decay_frames=decay_frames,
+                             **({} if correction_tau is None else {"correction_tau": correction_tau}))
     before, after = (0, 0) if live else padding(hop, settings.crossfade_frames, settings.decay_frames)
     idx = mirror_indices(T, before, after)
     padded = rot.canonical_hemisphere(np.asarray(rotations, dtype=np.float64)[idx])

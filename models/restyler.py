@@ -163,7 +163,7 @@ class Restyler:
         from .networks import from_channels, to_channels
 
         with torch.no_grad():
-            y = self.generator(direction)(to_channels(features))
+            y = self.generator(direction)(to_channels(features.contiguous()))  # one memory layout, one kernel: bit-equal paths
         return from_channels(y, features.shape[2])
 
     @property

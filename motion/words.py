@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import rotations as rot
+from .smoothing import CORRECTION_TAU, CorrectionFilter
 
 WORD_LENGTH = 60
 DEFAULT_HOP = 4  # frames between words when nobody says otherwise: serve's default latency preset, restyle, eval
@@ -97,6 +98,7 @@ class BlendSettings:
     delay: int | None = None  # frames between a frame's arrival and its output; >= hop
     decay_frames: float | None = None  # time constant of the seam offset; 0 disables blending
     crossfade_frames: int = 30  # pass-through <-> restyled fades
+    correction_tau: float = CORRECTION_TAU  # low-pass of the correction after blending; 0 = off
     word_length: int = WORD_LENGTH
     # Shifts the word grid by this many frames (0 <= phase < hop). The daemon staggers
     # groups of performers so their words do not all reach the model on the same tick.
@@ -298,8 +300,9 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     (repeated) until a word covers the final real frame, exactly as the daemon holds a
     stalled source. ``restyle_words`` maps words (B, 60, J, 4) to restyled words of the
     same shape; batching does not change the result because words are independent.
-    ``feet``: a ``footlock.FootLock`` (with the clip's root positions ``roots`` (T, 3))
-    that keeps planted feet where the input put them, as the daemon does after blending.
+    The blended output's correction is low-passed (``smoothing.CorrectionFilter``), then
+    ``feet``, a ``footlock.FootLock`` (with the clip's root positions ``roots`` (T, 3)),
+    keeps planted feet where the input put them: the daemon's order, frame by frame.
     """
     T, J = rotations.shape[:2]
     blender = SeamBlender(settings, J)
@@ -308,7 +311,7 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     ends, words = cut_words(padded, settings.hop, settings.word_length, settings.phase)
     for i in range(0, len(words), batch):
         blender.add_words(ends[i:i + batch], restyle_words(words[i:i + batch]))
-    out = blender.render_block(0, rotations, intensity)
+    out = CorrectionFilter(J, settings.correction_tau).apply(rotations, blender.render_block(0, rotations, intensity))
     if feet is None:
         return out
     # The daemon holds an ended source's last frame for at least ``delay`` >= ramp frames.

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
+from stylecast.motion.smoothing import CorrectionFilter
 from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, restyle_stream
 
 J = 22
@@ -55,8 +56,9 @@ def test_identity_restyler_is_transparent():
 @pytest.mark.parametrize("hop", [5, 15, 30])
 def test_offset_blend_removes_the_seam_that_plain_switching_shows(hop):
     motion = smooth_motion(600)
-    blended = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop))
-    plain = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop, decay_frames=0))
+    # the blender alone: the correction filter after it would hide plain switching too
+    blended = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop, correction_tau=0))
+    plain = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop, decay_frames=0, correction_tau=0))
     assert seam_ratio(blended, hop) < 1.10
     assert seam_ratio(plain, hop) > 3.0
 
@@ -117,19 +119,22 @@ def test_settings_are_validated():
 
 
 def test_frame_by_frame_rendering_equals_block_rendering():
-    """The daemon renders one frame per tick, restyle whole clips: same frames."""
+    """The daemon renders (and low-passes the correction of) one frame per tick, restyle
+    whole clips: same frames."""
     motion = smooth_motion(500)
     settings = BlendSettings(hop=10)
     block = restyle_stream(motion, biased_restyler(seed=4), settings)
     restyle = biased_restyler(seed=4)
     cutter, blender, out = WordCutter(10), SeamBlender(settings, J), []
+    smoothing = CorrectionFilter(J, settings.correction_tau)
     for now in range(500 + settings.delay):
         if now < 500:
             made = cutter.push(motion[now])
             if made is not None:
                 blender.add_word(made[0], restyle(made[1][None])[0])
         if 0 <= now - settings.delay < 500 - settings.hop:
-            out.append(blender.render(now - settings.delay, motion[now - settings.delay]))
+            t = now - settings.delay
+            out.append(smoothing.apply(motion[t][None], blender.render(t, motion[t])[None])[0])
     assert rot.angle_between(np.stack(out), block[:len(out)]).max() < 1e-9
 
 
@@ -147,3 +152,20 @@ def test_phase_shifts_the_word_grid_and_the_blend_follows_it():
     assert rot.angle_between(out[first_due + 30], motion[first_due + 30]).max() > 5.0
     with pytest.raises(ValueError, match="phase"):
         BlendSettings(hop=15, phase=15)
+
+
+def test_the_correction_filter_removes_a_shaking_correction_and_keeps_a_steady_one():
+    """A correction that flips every few frames (words that disagree) comes out smooth; a
+    constant one (a posture change) comes through whole once settled; and the input's own
+    motion is untouched."""
+    motion = smooth_motion(300)
+    bias = rot.from_euler(np.full((J, 3), 8.0), "ZXY")
+    steady = rot.multiply(bias, motion)
+    flip = np.where((np.arange(300) // 4 % 2 == 0)[:, None, None], steady, motion)  # 8 deg on and off every 4 frames
+    smooth = CorrectionFilter(J).apply(motion, flip)
+    jerk = lambda q: np.abs(np.diff(rot.log_map(rot.multiply(q, rot.inverse(motion))), n=3, axis=0)).mean()
+    assert jerk(smooth) < 0.05 * jerk(flip)
+    settled = CorrectionFilter(J).apply(motion, steady)
+    assert rot.angle_between(settled[60:], steady[60:]).max() < 1e-3  # a steady correction passes whole
+    assert rot.angle_between(CorrectionFilter(J).apply(motion, motion), motion).max() < 1e-9
+    assert CorrectionFilter(J, tau=0).apply(motion, flip) is flip  # off
