@@ -42,6 +42,7 @@ from stylecast.drivers.sources import open_source
 from stylecast.drivers.vmc.vmc_in import VmcParser
 from stylecast.drivers.vmc.vmc_out import encode_frame
 from stylecast.motion import rotations as rot
+from stylecast.motion.smoothing import CORRECTION_TAU
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 from .test_daemon import walk_clip
@@ -109,8 +110,11 @@ def test_a_failed_word_falls_back_on_its_first_frame_reaches_pass_through_and_bl
     # already fades towards pass-through; the frame before was fully restyled.
     assert mix[t_fail - 1] == 1.0 and mix[t_fail] == pytest.approx(1.0 - 1.0 / CROSSFADE)
     assert late[t_fail] == 1 and late[t_fail - 1] == 0
-    # It reaches pass-through exactly (output == input) while the outage lasts...
-    passthrough = slice(t_fail + CROSSFADE, t_back)
+    # It reaches pass-through exactly (output == input) while the outage lasts, once the
+    # fade and the correction low-pass after it have settled (25 time constants: 5e-9 of
+    # the correction left)...
+    passthrough = slice(t_fail + CROSSFADE + int(25 * CORRECTION_TAU), t_back)
+    assert passthrough.stop - passthrough.start > 10
     assert (mix[passthrough] == 0.0).all()
     assert rot.angle_between(out[passthrough], clip.rotations[passthrough]).max() < 1e-6
     # ...and blends back once good words return, starting on their first frame.
