@@ -146,7 +146,7 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, skeleton
     planted = M.planted(p_in)
     return {"jerk_in": M.jerk(p_in), "jerk_out": M.jerk(p_out),
             "slide_in": M.slide_samples(p_in, planted), "slide_out": M.slide_samples(p_out, planted),
-            "sync": M.timing_sync(p_in, p_out)}
+            "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out)}
 
 
 def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_action: list[np.ndarray],
@@ -160,6 +160,7 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
     act = np.concatenate(windows_action) if windows_action else np.zeros(0, int)
     truth = np.concatenate([np.full(len(w), a) for w, a in zip(windows_pred, actions_true)]) if windows_pred else act
     sync = [c["sync"] for c in per_clip if np.isfinite(c["sync"])]
+    sink = np.concatenate([c["penetration"] for c in per_clip])
     return {
         "windows": int(len(pred)),
         "judged_target": float(np.mean(pred == target)) if len(pred) else float("nan"),
@@ -172,6 +173,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "slide_ratio": float(s_out.mean() / max(s_in.mean(), 1e-9)) if s_in.size else float("nan"),
         "planted_frames": int(s_in.size // 2),
         "timing_sync": float(np.mean(sync)) if sync else float("nan"),
+        "floor_penetration_cm": float(sink.mean()) if sink.size else float("nan"),
+        "floor_penetration_p99_cm": float(np.percentile(sink, 99)) if sink.size else float("nan"),
     }
 
 

@@ -15,6 +15,8 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   (``motion.footlock``), so the instrument does not share the fixer's blind spots.
 * slide: horizontal speed (cm/frame) of a foot joint of a motion in the frames where the
   input's foot is planted.
+* floor penetration: how far a foot joint of the output sinks below the lowest the same
+  joint goes in the input (the input's floor contact), per frame.
 * timing sync: Pearson correlation of per-frame body speed (mean over joints of speed
   relative to the hips, so the shared root path cannot inflate it), input vs output.
 * Frechet distance between two sets of feature vectors (Gaussian fit), as in FID and
@@ -87,6 +89,14 @@ def slide_samples(positions: np.ndarray, masks: dict[str, np.ndarray]) -> np.nda
     (of the input: ``masks`` from ``planted(input)``), concatenated."""
     parts = [horizontal_speed(positions, j)[masks[side]] for side, names in FOOT_JOINTS.items() for j in names]
     return np.concatenate(parts)
+
+
+def floor_penetration(input_positions: np.ndarray, output_positions: np.ndarray) -> np.ndarray:
+    """(T,) how far (cm) the lowest foot joint of the output sinks below the lowest height
+    that joint reaches in the input (its floor contact), per frame; 0 when above."""
+    joints = _index([j for names in FOOT_JOINTS.values() for j in names])
+    floor = input_positions[:, joints, 1].min(axis=0)
+    return np.maximum(floor - output_positions[:, joints, 1], 0.0).max(axis=1)
 
 
 def body_speed(positions: np.ndarray) -> np.ndarray:

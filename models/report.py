@@ -70,13 +70,15 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                          f"{'yes' if met[key] else '**no**'} |")
         lines += ["", f"## All variants, {setting} (all actions)", "",
                   "| variant | judged target | action kept | FMD | jerk all | jerk hands | jerk feet | slide cm/frame "
-                  "(ratio) | sync | seam (/ input's) |", "|---|---|---|---|---|---|---|---|---|---|"]
+                  "(ratio) | feet below floor mean / p99 cm | sync | seam (/ input's) |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|"]
         for name, r in res.items():
             o = r[setting]["overall"]
             jr = o["jerk_ratio"]
             lines.append(f"| {name} | {_pct(o['judged_target'])} | {_pct(o['action_kept'])} | {_num(o['fmd'])} | "
                          f"{_num(jr['all'], 2)} | {_num(jr['hands'], 2)} | {_num(jr['feet'], 2)} | "
                          f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
+                         f"{_num(o['floor_penetration_cm'], 2)} / {_num(o['floor_penetration_p99_cm'], 1)} | "
                          f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
                          f"({_num(o['seam_ratio_relative'], 3)}) |")
     lines += ["", "Variants: " + "; ".join(f"`{k}`: {v['note']}" for k, v in res.items()) + ".", "",

@@ -103,3 +103,15 @@ def test_seam_ratio_sees_a_jump_at_each_word_boundary():
     assert seam_ratio(d, mask) == pytest.approx(1.0, abs=0.05)
     jumped = [d[0] + 2.0 * mask[0][:, None]]
     assert seam_ratio(jumped, mask) > 2.5
+
+
+def test_floor_penetration_sees_a_foot_through_the_floor_and_not_one_above_it():
+    still = planted_foot_positions()
+    assert M.floor_penetration(still, still).max() == 0.0
+    sunk = still.copy()
+    sunk[40:50, FOOT, 1] -= 2.5  # the ankle 2.5 cm below where the input stands for 10 frames
+    depth = M.floor_penetration(still, sunk)
+    assert depth[40:50] == pytest.approx(2.5) and depth[:40].max() == 0.0
+    lifted = still.copy()
+    lifted[:, FOOT, 1] += 5.0
+    assert M.floor_penetration(still, lifted).max() == 0.0
