@@ -28,6 +28,7 @@ mistaken contact costs nothing worse than the input's own leg for a few frames.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,12 +130,12 @@ class FootLock:
     def __init__(self, skeleton: Skeleton, ramp: int | None = None, settings: ContactSettings = ContactSettings()):
         if tuple(skeleton.names) != HUMANOID_BONES:
             raise ValueError("the foot lock works on the canonical humanoid skeleton")
-        self.offsets = np.asarray(skeleton.offsets, dtype=np.float64)
         self.settings = settings
+        self.set_offsets(skeleton.offsets)
         self.ramp = settings.ramp if ramp is None else max(0, int(ramp))
         self.frames = 0  # input frames pushed
         self._planted = np.zeros(2, dtype=bool)  # hysteresis state per foot
-        self._floor_history = np.zeros(0)  # lower ball height of the last floor_window - 1 frames
+        self._floor_history: deque = deque(maxlen=settings.floor_window)  # lower ball height per frame
         self._previous = None  # (ankle, ball) positions of the last pushed frame
         self._contacts = np.zeros((0, 2), dtype=bool)  # contacts of frames _base ..
         self._base = 0
@@ -150,6 +151,10 @@ class FootLock:
     def set_offsets(self, offsets: np.ndarray) -> None:
         """The performer's proportions changed (a calibration, a VMC sender's offsets)."""
         self.offsets = np.asarray(offsets, dtype=np.float64)
+        self._leg_offsets = [[tuple(self.offsets[j]) for j in leg] for leg in LEGS]
+        # How far the ankle sits above the ball when the foot stands flat: the foot bone's
+        # vertical extent in the T-pose (feet point forward and down).
+        self._ankle_rest = float(np.mean([-self.offsets[toes][1] for _, _, _, toes in LEGS]))
 
     # -- input side ---------------------------------------------------------------------
     def push(self, roots: np.ndarray, rotations: np.ndarray) -> np.ndarray:
@@ -157,17 +162,20 @@ class FootLock:
         their contacts (n, 2) bool (left, right)."""
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
         rotations = np.asarray(rotations, dtype=np.float64).reshape(len(roots), -1, 4)
+        if len(roots) == 1:  # the daemon's case, one frame per tick: plain floats
+            ankle, ball = _feet_of_one_frame(roots[0], rotations[0], self._leg_offsets)
+            ankle, ball = np.array([ankle]), np.array([ball])
+        else:
+            pos, _, _ = leg_chain(roots, rotations, self.offsets)
+            ankle, ball = pos[:, :, 2], pos[:, :, 3]
         s = self.settings
-        pos, _, _ = leg_chain(roots, rotations, self.offsets)
-        ankle, ball = pos[:, :, 2], pos[:, :, 3]
         # Floor: the lowest ball height over the window, this frame included (causal).
-        heights = np.concatenate([self._floor_history, ball[:, :, 1].min(axis=1)])
-        padded = np.concatenate([np.full(s.floor_window - 1, np.inf), heights])
-        lowest = sliding_window_view(padded, s.floor_window)[-len(roots):].min(axis=1)
-        self._floor_history = heights[len(heights) - (s.floor_window - 1):]
+        lowest = np.empty(len(roots))
+        for i, h in enumerate(ball[:, :, 1].min(axis=1).tolist()):
+            self._floor_history.append(h)
+            lowest[i] = min(self._floor_history)
         # The ball rests at the floor, the ankle one foot-height above it.
-        rest_ankle = self._ankle_rest_height()
-        height = np.minimum(ball[:, :, 1] - lowest[:, None], ankle[:, :, 1] - lowest[:, None] - rest_ankle)
+        height = np.minimum(ball[:, :, 1] - lowest[:, None], ankle[:, :, 1] - lowest[:, None] - self._ankle_rest)
         prev = self._previous if self._previous is not None else (ankle[:1], ball[:1])
         speed = np.minimum(_speeds(np.concatenate([prev[0], ankle])), _speeds(np.concatenate([prev[1], ball])))
         if self._previous is None:
@@ -181,11 +189,6 @@ class FootLock:
         self.frames += len(roots)
         self.planted_frames += int(contacts.sum())
         return contacts
-
-    def _ankle_rest_height(self) -> float:
-        """How far the ankle sits above the ball when the foot stands flat: the foot
-        bone's vertical extent in the T-pose (feet point forward and down)."""
-        return float(np.mean([-self.offsets[toes][1] for _, _, _, toes in LEGS]))
 
     # -- output side --------------------------------------------------------------------
     def weights(self, t0: int, n: int) -> np.ndarray:
@@ -228,6 +231,42 @@ class FootLock:
         if drop > 256:  # trim in chunks: a long stream keeps a bounded history
             self._contacts = self._contacts[drop:]
             self._base += drop
+
+
+def _qmul(a, b):
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def _qrot(q, v):
+    x, y, z, w = q
+    vx, vy, vz = v
+    cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx  # u x v
+    dx, dy, dz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx  # u x (u x v)
+    return vx + 2 * (w * cx + dx), vy + 2 * (w * cy + dy), vz + 2 * (w * cz + dz)
+
+
+def _feet_of_one_frame(root, rotations, leg_offsets):
+    """``leg_chain`` for one frame, on Python floats: ankle and ball positions of both
+    legs. Written out because the daemon pushes one frame per tick per performer, where
+    numpy's per-call cost was most of the foot lock's (measured 0.3 of 0.5 ms a frame);
+    tests/test_footlock.py checks it against the numpy path."""
+    hips = tuple(rotations[HIPS].tolist())
+    root = tuple(root.tolist())
+    ankles, balls = [], []
+    for leg, offsets in zip(LEGS, leg_offsets):
+        rot_, pos = hips, root
+        joints = []
+        for j, off in zip(leg, offsets):
+            d = _qrot(rot_, off)
+            pos = (pos[0] + d[0], pos[1] + d[1], pos[2] + d[2])
+            rot_ = _qmul(rot_, tuple(rotations[j].tolist()))
+            joints.append(pos)
+        ankles.append(joints[2])
+        balls.append(joints[3])
+    return ankles, balls
 
 
 def _speeds(positions: np.ndarray) -> np.ndarray:

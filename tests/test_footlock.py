@@ -122,3 +122,16 @@ def test_a_rig_that_is_not_the_humanoid_is_refused():
 
     with pytest.raises(ValueError):
         FootLock(Skeleton(("a", "b"), (-1, 0), np.zeros((2, 3))))
+
+
+def test_the_one_frame_float_path_equals_the_array_path():
+    from stylecast.motion.footlock import _feet_of_one_frame
+
+    roots, q = stepping(30)
+    q = restyled(q)
+    lock = FootLock(SK)
+    pos, _, _ = leg_chain(roots, q, SK.offsets)
+    for t in range(30):
+        ankle, ball = _feet_of_one_frame(roots[t], q[t], lock._leg_offsets)
+        np.testing.assert_allclose(ankle, pos[t, :, 2], atol=1e-9)
+        np.testing.assert_allclose(ball, pos[t, :, 3], atol=1e-9)
