@@ -184,18 +184,25 @@ def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0, la
 
 # ----------------------------------------------------------------------------- benches
 
+def run_and_time(d, rx, seconds):
+    """Run daemon ``d`` for ``seconds`` and return the added latency (ms) of each frame
+    ``rx`` received: receive time against the input frame's due time; the start-up
+    second skipped."""
+    d.run(duration=seconds)
+    t0 = d.sessions[0].source._t0
+    d.close()
+    _, stamps = rx.stop()
+    lat = np.array([t - (t0 + i / FPS) for i, t in stamps]) * 1e3
+    return lat[len(lat) // 10:]
+
+
 def bench_latency(model, motion, seconds=8.0):
     rows = []
     for hop in (1, 5, 15, 60):
         port = free_ports(1)
         rx = Receiver([port], decode_index=True)
         d = make_daemon(1, hop, model, motion, port)
-        d.run(duration=seconds)
-        t0 = d.sessions[0].source._t0
-        d.close()
-        _, stamps = rx.stop()
-        lat = np.array([t - (t0 + i / FPS) for i, t in stamps]) * 1e3
-        lat = lat[len(lat) // 10:]  # skip the start-up second
+        lat = run_and_time(d, rx, seconds)
         own = d.sessions[0].latency
         goal = hop / FPS * 1e3 + 5
         rows.append((hop, f"{hop / FPS * 1e3:.1f}", f"{np.percentile(lat, 50):.2f}", f"{np.percentile(lat, 99):.2f}",
@@ -215,12 +222,7 @@ def bench_presets(model, motion, n=8, seconds=8.0):
         port = free_ports(n)
         rx = Receiver([port + k for k in range(n)], decode_index=True)
         d = make_daemon(n, hop, model, motion, port, latency=latency, legacy=legacy)
-        d.run(duration=seconds)
-        t0 = d.sessions[0].source._t0
-        d.close()
-        _, stamps = rx.stop()
-        lat = np.array([t - (t0 + i / FPS) for i, t in stamps]) * 1e3
-        lat = lat[len(lat) // 10:]  # skip the start-up second
+        lat = run_and_time(d, rx, seconds)
         p99 = np.percentile(lat, 99)
         late = sum(s.blender.late_frames for s in d.sessions)
         met = "" if goal is None else ("yes" if p99 <= goal and late == 0 and d.dropped_ticks == 0 else "NO")
