@@ -139,7 +139,7 @@ class FootLock:
         self._previous = None  # (ankle, ball) positions of the last pushed frame
         self._contacts = np.zeros((0, 2), dtype=bool)  # contacts of frames _base ..
         self._base = 0
-        self.planted_frames = 0  # counters for the status line and tests
+        self.planted_frames = 0  # counters (tests, benchmarks)
         self.locked_frames = 0
 
     @classmethod
