@@ -38,6 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "full-rate correction (default: the shipped models' setting)")
     p.add_argument("--lambda-gram", type=float, default=0.0,
                    help="weight of the velocity Gram-matrix dynamics-style loss (seed 004); default 0 = off")
+    p.add_argument("--lambda-overlap", type=float, default=0.0,
+                   help="weight of the loss that makes overlapping words of a take agree (what the stream "
+                        "switches between); default 0 = off")
     p.add_argument("--out", type=Path, required=True, help="output folder (checkpoints, losses.csv, model)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last epoch")
     p.add_argument("--max-words", type=_positive_int, help="use at most N training words per style (tiny CI runs)")
@@ -97,21 +100,26 @@ def run_train(args) -> int:
     pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss, epochs=args.epochs,
                       batch_size=args.batch_size, words_per_epoch=args.words_per_epoch, seed=args.seed,
-                      representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram)
+                      representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
+                      lambda_overlap=args.lambda_overlap)
     from stylecast.motion.errors import UserError
 
     if args.style_a == args.style_b:
         raise UserError(f"--style-a and --style-b are both {args.style_a!r}; choose two different styles")
-    if not args.lambda_gram >= 0:
-        raise UserError(f"--lambda-gram must be 0 or more, got {args.lambda_gram:g}")
+    for flag, value in (("--lambda-gram", args.lambda_gram), ("--lambda-overlap", args.lambda_overlap)):
+        if not value >= 0:
+            raise UserError(f"{flag} must be 0 or more, got {value:g}")
     try:
         cfg.network = NetworkConfig() if args.knots is None else NetworkConfig(correction_knots=args.knots)
     except ValueError as exc:
         raise UserError(f"--knots: {exc}") from None
     sets = load_training_words(cfg, args.data, args.cache, progress=not args.no_progress)
-    train(cfg, args.out, sets[(cfg.style_a, "train")].words, sets[(cfg.style_b, "train")].words,
-          sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,
-          resume=args.resume, device=args.device, progress=not args.no_progress)
+    from .data import next_words
+
+    a, b = sets[(cfg.style_a, "train")], sets[(cfg.style_b, "train")]
+    train(cfg, args.out, a.words, b.words, sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,
+          resume=args.resume, device=args.device, progress=not args.no_progress,
+          next_a=next_words(a), next_b=next_words(b))
     return 0
 
 

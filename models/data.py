@@ -213,6 +213,14 @@ class WordSet:
         return out
 
 
+def next_words(wordset: "WordSet") -> np.ndarray:
+    """For each word of a set cut in take order, the index of the next word of the same
+    take (they overlap by length - hop frames), or -1 at the end of a take."""
+    nxt = np.arange(1, len(wordset) + 1)
+    same = np.append(wordset.file_index[1:] == wordset.file_index[:-1], False)
+    return np.where(same, nxt, -1)
+
+
 def headless(words: np.ndarray) -> np.ndarray:
     """Quaternion words (N, 60, J, 4) with their heading removed, float32."""
     if len(words) == 0:

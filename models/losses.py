@@ -76,6 +76,16 @@ def gram_loss(generated: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
     return ((velocity_gram(generated).mean(dim=0) - velocity_gram(real).mean(dim=0)) ** 2).mean()
 
 
+# Overlap consistency (stylecast's, for the stream): the stream serves the newest frames
+# of each word and switches word every hop frames, so two words that overlap must agree
+# where they do, or every switch turns the motion (the seam blender and the correction
+# low-pass then have to hide it). Words i and i+1 of one take overlap by T - shift frames;
+# their outputs there should match. Channels ``skip`` (the Hips) are left out: each word's
+# heading is removed at its own centre, so the Hips' features of the two differ by design.
+def overlap_loss(generated: torch.Tensor, generated_next: torch.Tensor, shift: int, skip: int) -> torch.Tensor:
+    return _per_word_mean((generated[:, skip:, shift:] - generated_next[:, skip:, :-shift]).abs())
+
+
 @dataclass
 class GeneratorLosses:
     adv_a2b: torch.Tensor

@@ -43,7 +43,7 @@ from . import representation as R
 from .representation import euler_features, get_representation
 
 CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
-              "temporal_b", "gram_a2b", "gram_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
+              "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
               "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
 
 
@@ -68,6 +68,7 @@ class TrainConfig:
     lambda_diff: float = L.LAMBDA_DIFF
     lambda_coherence: float = L.LAMBDA_COHERENCE
     lambda_gram: float = L.LAMBDA_GRAM
+    lambda_overlap: float = 0.0  # overlapping words agree (losses.overlap_loss); 0 = off
     network: NetworkConfig = field(default_factory=NetworkConfig)
 
     def to_dict(self) -> dict:
@@ -132,7 +133,10 @@ class Trainer:
 
     def __init__(self, cfg: TrainConfig, words_a: np.ndarray, words_b: np.ndarray,
                  val_a: np.ndarray | None = None, val_b: np.ndarray | None = None, device: str = "auto",
-                 reference: np.ndarray | None = None):
+                 reference: np.ndarray | None = None, next_a: np.ndarray | None = None,
+                 next_b: np.ndarray | None = None):
+        """``next_a``/``next_b``: for each training word, the index of the next word of the
+        same take (overlapping it by 60 - hop frames), or -1 (``data.next_words``)."""
         import torch
 
         if cfg.loss not in L.LOSS_KINDS:
@@ -150,6 +154,7 @@ class Trainer:
         self.model.to(self.device)
         self.opt_g = torch.optim.Adam(self.model.generators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
         self.opt_d = torch.optim.Adam(self.model.discriminators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
+        self.next_a, self.next_b = next_a, next_b
         self.words_a = torch.from_numpy(self._encode(words_a))
         self.words_b = torch.from_numpy(self._encode(words_b))
         self.val_a = None if val_a is None or len(val_a) == 0 else self._encode(val_a[: cfg.val_words])
@@ -157,7 +162,9 @@ class Trainer:
         self.epoch = 0  # epochs completed
 
     # -- one step ---------------------------------------------------------------------
-    def step(self, a, b) -> dict[str, float]:
+    def step(self, a, b, a_next=None, b_next=None) -> dict[str, float]:
+        """One update. ``a_next``/``b_next``: (rows, next words) pairs, the word after each
+        of those rows of ``a``/``b`` in the same take (for the overlap loss), or None."""
         m, cfg = self.model, self.cfg
         for p in m.discriminators():
             p.requires_grad_(False)
@@ -167,8 +174,18 @@ class Trainer:
         rec_b = m.G_a2b(fake_a)
         g = L.generator_objective(cfg.loss, a, b, fake_b, fake_a, rec_a, rec_b, m.D_b(fake_b), m.D_a(fake_a),
                                   cfg.lambda_cycle, cfg.lambda_diff, cfg.lambda_coherence, cfg.lambda_gram)
+        total = g.total
+        overlaps = {}
+        for name, fake, nxt, gen in (("overlap_a", fake_b, a_next, m.G_a2b), ("overlap_b", fake_a, b_next, m.G_b2a)):
+            if cfg.lambda_overlap > 0 and nxt is not None and len(nxt[0]):
+                rows, words = nxt
+                loss = L.overlap_loss(fake[rows], gen(words), cfg.hop, self.rep.channels)
+                total = total + cfg.lambda_overlap * loss
+                overlaps[name] = loss.item()
+            else:
+                overlaps[name] = 0.0
         self.opt_g.zero_grad(set_to_none=True)
-        g.total.backward()
+        total.backward()
         self.opt_g.step()
         for p in m.discriminators():
             p.requires_grad_(True)
@@ -180,10 +197,20 @@ class Trainer:
         return {"G_a2b": g.adv_a2b.item(), "G_b2a": g.adv_b2a.item(), "D_a": d_a.item(), "D_b": d_b.item(),
                 "cycle_a": g.cycle_a.item(), "cycle_b": g.cycle_b.item(), "temporal_a": g.temporal_a.item(),
                 "temporal_b": g.temporal_b.item(), "gram_a2b": g.gram_a2b.item(), "gram_b2a": g.gram_b2a.item(),
-                "G_total": g.total.item()}
+                **overlaps, "G_total": total.item()}
 
     def _to(self, words):
         return to_channels(words).to(self.device)
+
+    def _next(self, nxt, words, rows):
+        """(rows of the batch that have a next word, those next words) for the overlap loss."""
+        if nxt is None or self.cfg.lambda_overlap <= 0:
+            return None
+        import torch
+
+        following = nxt[rows]
+        keep = np.flatnonzero(following >= 0)
+        return torch.from_numpy(keep).to(self.device), self._to(words[following[keep]])
 
     def run_epoch(self, progress=None) -> dict[str, float]:
         cfg = self.cfg
@@ -194,7 +221,8 @@ class Trainer:
         sums: dict[str, float] = {}
         for i, (ia, ib) in enumerate(zip(ba, bb)):
             with self.determinism.watch():
-                out = self.step(self._to(self.words_a[ia]), self._to(self.words_b[ib]))
+                out = self.step(self._to(self.words_a[ia]), self._to(self.words_b[ib]),
+                                self._next(self.next_a, self.words_a, ia), self._next(self.next_b, self.words_b, ib))
             for k, v in out.items():
                 sums[k] = sums.get(k, 0.0) + v
             if progress is not None:
@@ -298,7 +326,7 @@ def _read_csv(path: Path) -> list[dict]:
 
 
 def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None, resume: bool = False,
-          device: str = "auto", progress: bool = True, log=print) -> Trainer:
+          device: str = "auto", progress: bool = True, log=print, next_a=None, next_b=None) -> Trainer:
     """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -310,7 +338,7 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
         _, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
         ref = meta["representation"].get("reference")
         reference = None if ref is None else np.asarray(ref, dtype=np.float64)
-    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference)
+    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b)
     trainer.determinism.log = log
     rows: list[dict] = []
     if resume:

@@ -355,3 +355,21 @@ def test_hand_written_xzy_matches_scipy():
     assert rot.angle_between(R.xzy_to_quat(e), rot.from_euler(e, "XZY")).max() < 1e-6
     locked = rot.from_euler(np.array([[30.0, 90.0, 0.0], [-50.0, -90.0, 0.0]]), "XZY")
     assert rot.angle_between(R.xzy_to_quat(R.quat_to_xzy(locked)), locked).max() < 1e-4
+
+
+def test_overlap_loss_is_zero_for_words_that_agree_and_sees_ones_that_do_not():
+    import torch
+
+    from stylecast.models.data import WordSet, next_words
+
+    take = torch.randn(1, 66, 100)
+    first, second = take[..., 0:60], take[..., 20:80]  # the same take, 20 frames on
+    assert L.overlap_loss(first, second, 20, 3).item() == 0.0
+    turned = second.clone()
+    turned[:, 3:, 30:] += 0.1  # the second word disagrees on frames both cover
+    assert L.overlap_loss(first, turned, 20, 3).item() > 0.01
+    hips_only = second.clone()
+    hips_only[:, :3] += 1.0  # the Hips differ by design (heading removed per word): not counted
+    assert L.overlap_loss(first, hips_only, 20, 3).item() == 0.0
+    ws = WordSet("normal", np.zeros((5, 60, 22, 4), np.float32), np.array([0, 0, 0, 1, 1]), [])
+    assert next_words(ws).tolist() == [1, 2, -1, 4, -1]  # never across two takes
