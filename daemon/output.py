@@ -86,7 +86,7 @@ class PerformerSinks:
         for sink in self.outputs:
             sink.send(frame.root_position, frame.rotations, self.offsets, time)
         for sink in self.inputs:
-            sink.send(frame.root_position, frame.input_rotations, self.offsets, time)
+            sink.send(frame.input_root, frame.input_rotations, self.offsets, time)
         if self.recorder is not None:
             self.recorder.append(frame.root_position, frame.rotations)
         for tap in self.frame_taps:

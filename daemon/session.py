@@ -51,9 +51,10 @@ class OutputFrame:
     performer: str
     index: int  # input/output frame index t
     arrival: float  # when input frame t arrived, on the daemon clock
-    root_position: np.ndarray  # (3,) cm, passed through
+    root_position: np.ndarray  # (3,) cm: the input's, at the pelvis height the foot lock set
     rotations: np.ndarray  # (J, 4) restyled (blended) local rotations
     input_rotations: np.ndarray  # (J, 4) what came in (for --out-input)
+    input_root: np.ndarray  # (3,) cm, what came in
 
 
 class Session:
@@ -207,10 +208,10 @@ class Session:
         active = (not self.bypass) and self.blender.serving_word(t) >= self._resume_end
         rotations = self.blender.render(t, input_rot, self.intensity, active)
         rotations = self.smoothing.apply(input_rot[None], rotations[None])
-        rotations = self.feet.apply(t, root, input_rot[None], rotations)[0]
+        roots, rotations = self.feet.apply(t, root, input_rot[None], rotations)
         self.out_t = t + 1
         self.frames_out += 1
-        frame = OutputFrame(self.performer, t, arrival, root, rotations, input_rot)
+        frame = OutputFrame(self.performer, t, arrival, roots[0], rotations[0], input_rot, root)
         self.last_output = frame
         self.new_frame = True
         return frame

@@ -12,7 +12,9 @@ seam blender, foot lock), in two settings:
 Variants: ``input`` (nothing done: the floor of every "kept" measure), ``posture`` (the
 mean pose difference between the two styles added to the input: the cheapest possible
 "style"), the first shipped model (``normal2exhausted-v1``, the figure to beat), the
-coherence baseline, the model under test, and any ``--variant NAME=PATH``.
+coherence baseline, the model under test, and any ``--variant NAME=PATH``; and the model
+under test without each stage around it (the foot lock, the correction low-pass, the
+pelvis height), to show what each stage does.
 
 Measures (``metrics.py`` for the arithmetic, ``judges.py`` for the classifiers), each
 overall and per action:
@@ -40,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from stylecast.motion.errors import UserError
+from stylecast.motion.footlock import ContactSettings
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.words import DEFAULT_HOP
 
@@ -62,6 +65,7 @@ BASELINE = "normal2exhausted-coherence"
 # then the fade-in. The held-out takes are 2 to 9 s long (median 2.2 s), so that start-up
 # is most of a clip; the goals are read on "stream".
 SETTINGS = (("stream", False, 0), ("live-from-start", True, 0))
+FIXED_PELVIS = ContactSettings(pelvis_tau=0)
 
 
 @dataclass
@@ -71,6 +75,7 @@ class Variant:
     note: str
     lock_feet: bool = True  # the product always locks; one row shows what the lock does
     smooth: bool = True  # ...and low-passes the correction; one row shows what that does
+    pelvis: bool = True  # ...and sets the pelvis height; one row shows what that does
 
 
 # --- the paper's smoothness and the seams ----------------------------------------------------
@@ -134,15 +139,17 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
                        lock_feet=False))
     out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
                        "the model under test without the correction low-pass", smooth=False))
+    out.append(Variant("proposed-fixed-pelvis", proposed.restyle_words,
+                       "the model under test with the root passed through (no pelvis height)", pelvis=False))
     out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test)"))
     return out
 
 
 # --- measuring one set of outputs -------------------------------------------------------------------
 
-def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, skeleton) -> dict:
+def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_roots: np.ndarray, skeleton) -> dict:
     p_in = M.world_positions(inp, roots, skeleton)
-    p_out = M.world_positions(out, roots, skeleton)
+    p_out = M.world_positions(out, out_roots, skeleton)
     planted = M.planted(p_in)
     return {"jerk_in": M.jerk(p_in), "jerk_out": M.jerk(p_out),
             "slide_in": M.slide_samples(p_in, planted), "slide_out": M.slide_samples(p_out, planted),
@@ -236,20 +243,26 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
             for m in clips:
                 inp = m.rotations.astype(np.float64)
                 roots = m.root_positions.astype(np.float64)
-                lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
-                res = inp if variant.restyle_words is None else restyle_rotations(
-                    inp, variant.restyle_words, hop, live=live, correction_tau=None if variant.smooth else 0.0, **lock)
+                out_roots = roots
+                if variant.restyle_words is None:
+                    res = inp
+                else:
+                    lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
+                    res, moved = restyle_rotations(inp, variant.restyle_words, hop, live=live,
+                                                   correction_tau=None if variant.smooth else 0.0,
+                                                   contacts=None if variant.pelvis else FIXED_PELVIS, **lock)
+                    out_roots = roots if moved is None else moved  # the pelvis height the lock set
                 mask = switch_mask(len(res), hop, live)[skip:]
-                inp, res, roots = inp[skip:], res[skip:], roots[skip:]
-                per_clip.append(_clip_measures(inp, res, roots, skeleton))
-                w = judge_windows(res, roots, skeleton)
+                inp, res, roots, out_roots = inp[skip:], res[skip:], roots[skip:], out_roots[skip:]
+                per_clip.append(_clip_measures(inp, res, roots, out_roots, skeleton))
+                w = judge_windows(res, out_roots, skeleton)
                 preds.append(judges.style.predict(w))
                 acts.append(judges.action.predict(w))
                 feats.append(judges.style.embed(w))
                 ds.append(frame_differences(res))
                 masks.append(mask)
                 if setting == "stream":
-                    outputs_for_plot.setdefault(variant.name, []).append(res)
+                    outputs_for_plot.setdefault(variant.name, []).append((res, out_roots))
             summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles), "per_action": {}}
             for a in sorted(set(act_idx)):
                 sel = [i for i, x in enumerate(act_idx) if x == a]
@@ -268,7 +281,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
             f"({time.perf_counter() - t0:.0f} s)")
 
     # The paper's plain words (hop 60, no blend) against the blend, for the model under test.
-    plain = [restyle_rotations(m.rotations.astype(np.float64), proposed.restyle_words, WORD, decay_frames=0)
+    plain = [restyle_rotations(m.rotations.astype(np.float64), proposed.restyle_words, WORD, decay_frames=0).rotations
              for m in clips]
     plain_seam = seam_ratio([frame_differences(p) for p in plain], [switch_mask(len(p), WORD, False) for p in plain])
 
@@ -294,12 +307,11 @@ def _plots(out: Path, clips, outputs: dict, skeleton) -> list[str]:
 
     walks = [i for i, m in enumerate(clips) if m.file.action == "walk"] or [0]
     i = walks[0]
-    roots = clips[i].root_positions.astype(np.float64)
     shown = {k: v[i] for k, v in outputs.items() if k in ("input", SHIPPED_V1, "proposed")}
     hand, foot = HUMANOID_BONES.index("RightHand"), HUMANOID_BONES.index("LeftFoot")
     fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
     colours = {"input": "0.4", SHIPPED_V1: "tab:red", "proposed": "tab:green"}
-    for name, rotations in shown.items():
+    for name, (rotations, roots) in shown.items():
         p = M.world_positions(rotations, roots, skeleton)
         t = np.arange(len(p)) / D.FPS
         axes[0].plot(t, p[:, hand, 1], color=colours[name], lw=0.9, label=name)

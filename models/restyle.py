@@ -4,7 +4,8 @@ read -> ``Retarget.for_clip`` -> humanoid -> resample to 60 fps -> the shared wi
 blend stream code (``stylecast.motion.words.restyle_stream``, the same cutter and seam
 blender the daemon runs live) -> back to the output frame rate -> ``Retarget.to_source``
 with the original clip as template -> written with the input's skeleton and joint names.
-The root trajectory passes through untouched.
+The root trajectory passes through, but for the pelvis height the foot lock sets
+(``motion.footlock``: the restyled legs' bend stands on the planted feet).
 
 The live stream starts in pass-through and fades the restyled output in once the first
 word is due; an offline clip has no "before", so it is padded at the start (and the end)
@@ -20,7 +21,7 @@ import numpy as np
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.errors import UserError
-from stylecast.motion.words import DEFAULT_HOP
+from stylecast.motion.words import DEFAULT_HOP, Restyled
 
 WORD_LENGTH = 60
 FPS = 60.0
@@ -60,14 +61,17 @@ def word_switches(num_frames: int, hop: int, crossfade_frames: int = CROSSFADE_F
 def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_HOP, intensity: float = 1.0,
                       crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
                       live: bool = False, roots: np.ndarray | None = None, skeleton=None,
-                      correction_tau: float | None = None) -> np.ndarray:
-    """Humanoid rotations (T, J, 4) at 60 fps -> restyled (T, J, 4), any T >= 1.
+                      correction_tau: float | None = None, contacts=None) -> Restyled:
+    """Humanoid rotations (T, J, 4) at 60 fps -> restyled rotations (T, J, 4) and, where
+    ``roots`` (T, 3) are given, root positions; any T >= 1.
     ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
     mirrored padding, so the result is frame for frame what the daemon sends for the same
     motion (pass-through until the first word is due, then the fade-in). With the root
     positions ``roots`` (T, 3) and the humanoid ``skeleton`` the planted feet are locked
-    (``motion.footlock``), as the daemon does; without them they are not."""
-    from stylecast.motion.footlock import FootLock
+    and the pelvis height set (``motion.footlock``, with ``contacts``, its
+    ``ContactSettings``, or the defaults the daemon runs), as the daemon does; without them
+    they are not."""
+    from stylecast.motion.footlock import ContactSettings, FootLock
     from stylecast.motion.words import BlendSettings, restyle_stream
 
     if not 1 <= hop <= WORD_LENGTH:
@@ -79,11 +83,13 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
     idx = mirror_indices(T, before, after)
     padded = rot.canonical_hemisphere(np.asarray(rotations, dtype=np.float64)[idx])
     feet = None
-    if skeleton is not None and roots is not None:
-        feet = FootLock.for_stream(skeleton, settings.delay)
+    if roots is not None:
         roots = np.asarray(roots, dtype=np.float64)[idx]
+        if skeleton is not None:
+            feet = FootLock.for_stream(skeleton, settings.delay, contacts or ContactSettings())
     out = restyle_stream(padded, restyle_words, settings, intensity=intensity, roots=roots, feet=feet)
-    return out[before:before + T]
+    real = slice(before, before + T)
+    return Restyled(out.rotations[real], None if out.roots is None else out.roots[real])
 
 
 def sample_at(rotations: np.ndarray, fps: float, times: np.ndarray) -> np.ndarray:
@@ -118,8 +124,11 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
         template = resample(clip, out_fps)
         h_template = retarget.to_humanoid(template)
     times = np.arange(template.num_frames) / out_fps
-    rotations = sample_at(restyled60, FPS, times)
-    return retarget.to_source(h_template.replace(rotations=rotations), template=template)
+    rotations = sample_at(restyled60.rotations, FPS, times)
+    # The pelvis height the foot lock set, as a vertical offset on the template's own roots.
+    drop = np.interp(times, np.arange(h60.num_frames) / FPS, h60.root_positions[:, 1] - restyled60.roots[:, 1])
+    roots = h_template.root_positions - drop[:, None] * np.array([0.0, 1.0, 0.0])
+    return retarget.to_source(h_template.replace(rotations=rotations, root_positions=roots), template=template)
 
 
 def restyle_file(input_path, output_path, model=None, direction: str = "a2b", intensity: float = 1.0,

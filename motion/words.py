@@ -38,6 +38,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -290,9 +291,17 @@ class SeamBlender:
             del self._words[old]
 
 
+class Restyled(NamedTuple):
+    """A restyled stream: rotations (T, J, 4), and root positions (T, 3) where the roots
+    were given (the foot lock moves the pelvis height; without it they are the input's)."""
+
+    rotations: np.ndarray
+    roots: np.ndarray | None
+
+
 def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings,
                    intensity: float = 1.0, batch: int = 64, roots: np.ndarray | None = None,
-                   feet=None) -> np.ndarray:
+                   feet=None) -> Restyled:
     """Offline: run a whole clip's humanoid rotations (T, J, 4) through the same cutter and
     blender the daemon uses, with every word restyled in time (never late).
 
@@ -302,7 +311,8 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     same shape; batching does not change the result because words are independent.
     The blended output's correction is low-passed (``smoothing.CorrectionFilter``), then
     ``feet``, a ``footlock.FootLock`` (with the clip's root positions ``roots`` (T, 3)),
-    keeps planted feet where the input put them: the daemon's order, frame by frame.
+    keeps planted feet where the input put them and sets the pelvis height: the daemon's
+    order, frame by frame.
     """
     T, J = rotations.shape[:2]
     blender = SeamBlender(settings, J)
@@ -313,9 +323,10 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
         blender.add_words(ends[i:i + batch], restyle_words(words[i:i + batch]))
     out = CorrectionFilter(J, settings.correction_tau).apply(rotations, blender.render_block(0, rotations, intensity))
     if feet is None:
-        return out
+        return Restyled(out, roots)
     # The daemon holds an ended source's last frame for at least ``delay`` >= ramp frames.
     tail = max(held, feet.ramp)
     feet.push(np.concatenate([roots, np.repeat(roots[-1:], tail, axis=0)]),
               np.concatenate([rotations, np.repeat(rotations[-1:], tail, axis=0)]))
-    return feet.apply(0, roots, rotations, out)
+    new_roots, locked = feet.apply(0, roots, rotations, out)
+    return Restyled(locked, new_roots)

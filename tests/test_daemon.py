@@ -58,8 +58,9 @@ def run_daemon(clip: Clip, restyler, hop: int = 15, performers: int = 1, tap=Non
     return daemon, frames
 
 
-def offline(clip: Clip, restyler, hop: int) -> np.ndarray:
-    """What `stylecast restyle --live --hop HOP` computes for this humanoid motion."""
+def offline(clip: Clip, restyler, hop: int):
+    """What `stylecast restyle --live --hop HOP` computes for this humanoid motion:
+    rotations and roots (the foot lock sets the pelvis height)."""
     from stylecast.models.restyle import restyle_rotations
 
     return restyle_rotations(clip.rotations, restyler.restyle_words, hop, crossfade_frames=30, live=True,
@@ -71,7 +72,9 @@ def test_restyle_live_is_the_shared_stream_code():
     settings = BlendSettings(hop=15, crossfade_frames=30)
     feet = FootLock.for_stream(clip.skeleton, settings.delay)
     direct = restyle_stream(clip.rotations, restyler.restyle_words, settings, roots=clip.root_positions, feet=feet)
-    assert rot.angle_between(offline(clip, StandInRestyler(), 15), direct).max() < 1e-9
+    again = offline(clip, StandInRestyler(), 15)
+    assert rot.angle_between(again.rotations, direct.rotations).max() < 1e-9
+    np.testing.assert_array_equal(again.roots, direct.roots)
 
 
 @pytest.mark.parametrize("hop", [1, 15, 60])
@@ -83,9 +86,11 @@ def test_daemon_output_equals_offline_restyle(hop):
     assert [f.index for f in out] == list(range(clip.num_frames))
     live = np.stack([f.rotations for f in out])
     expected = offline(clip, restyler, hop)
-    assert rot.angle_between(live, expected).max() < 1e-4  # degrees
+    assert rot.angle_between(live, expected.rotations).max() < 1e-4  # degrees
     assert rot.angle_between(live, clip.rotations).max() > 1.0  # the stand-in really restyles
-    np.testing.assert_array_equal(np.stack([f.root_position for f in out]), clip.root_positions)
+    roots = np.stack([f.root_position for f in out])
+    np.testing.assert_allclose(roots, expected.roots, atol=1e-6)  # cm: the same pelvis height
+    np.testing.assert_array_equal(roots[:, [0, 2]], clip.root_positions[:, [0, 2]])  # only the height moves
     assert daemon.sessions[0].blender.late_frames == 0 or hop == 60
 
 
@@ -97,7 +102,7 @@ def test_daemon_output_equals_offline_restyle_with_the_shipped_model():
     clip = walk_clip(240)
     _, frames = run_daemon(clip, restyler, hop=15)
     live = np.stack([f.rotations for f in frames["p0"]])
-    assert rot.angle_between(live, offline(clip, restyler, 15)).max() < 1e-4
+    assert rot.angle_between(live, offline(clip, restyler, 15).rotations).max() < 1e-4
 
 
 @pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")
@@ -118,8 +123,9 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root):
         assert daemon.sessions[0].feet.locked_frames > 60  # a walk plants its feet: the lock is compared too
         live = np.stack([f.rotations for f in frames["p0"]])
         expected = offline(resample(motion, 60.0), restyler, hop)
-        assert live.shape == expected.shape
-        assert rot.angle_between(live, expected).max() < 1e-4
+        assert live.shape == expected.rotations.shape
+        assert rot.angle_between(live, expected.rotations).max() < 1e-4
+        np.testing.assert_allclose(np.stack([f.root_position for f in frames["p0"]]), expected.roots, atol=1e-6)
         assert rot.angle_between(live[120:], resample(motion, 60.0).rotations[120:]).max() > 1.0  # restyled
 
 
@@ -135,7 +141,7 @@ def test_several_performers_are_batched_and_each_equals_offline():
     assert daemon.worker.batches < daemon.worker.words  # words of several performers share calls
     for k, clip in enumerate(clips):
         live = np.stack([f.rotations for f in frames[f"p{k}"]])
-        assert rot.angle_between(live, offline(clip, restyler, 10)).max() < 1e-4
+        assert rot.angle_between(live, offline(clip, restyler, 10).rotations).max() < 1e-4
 
 
 def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline():
@@ -153,8 +159,9 @@ def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline
     assert daemon.worker.batches < daemon.worker.words
     for k, phase in ((0, 0), (9, 5)):
         live = np.stack([f.rotations for f in frames[f"p{k}"]])
-        expected = restyle_stream(clip.rotations, restyler.restyle_words,
-                                  BlendSettings(hop=10, crossfade_frames=30, phase=phase))
+        settings = BlendSettings(hop=10, crossfade_frames=30, phase=phase)
+        expected = restyle_stream(clip.rotations, restyler.restyle_words, settings, roots=clip.root_positions,
+                                  feet=FootLock.for_stream(clip.skeleton, settings.delay)).rotations
         assert rot.angle_between(live, expected).max() < 1e-4
 
 

@@ -70,10 +70,10 @@ def test_a_planted_foot_stays_within_a_millimetre_and_legs_keep_their_length():
     out_in = restyled(q)
     lock = FootLock(SK)
     contacts = lock.push(roots, q)
-    locked = lock.apply(0, roots, q, out_in)
+    locked_roots, locked = lock.apply(0, roots, q, out_in)
     p_in, _, _ = leg_chain(roots, q, SK.offsets)
     p_raw, _, _ = leg_chain(roots, out_in, SK.offsets)
-    p_out, _, _ = leg_chain(roots, locked, SK.offsets)
+    p_out, _, _ = leg_chain(locked_roots, locked, SK.offsets)
     err_raw = np.linalg.norm(p_raw[:, :, 2] - p_in[:, :, 2], axis=-1)[contacts]
     err = np.linalg.norm(p_out[:, :, 2] - p_in[:, :, 2], axis=-1)[contacts]
     assert err_raw.max() > 5.0  # without the lock the planted foot wanders by centimetres
@@ -91,25 +91,169 @@ def test_streaming_a_frame_at_a_time_equals_the_whole_clip():
     out_in = restyled(q)
     whole = FootLock(SK, ramp=4)
     whole.push(roots, q)
-    expected = whole.apply(0, roots, q, out_in)
+    expected_roots, expected = whole.apply(0, roots, q, out_in)
     live = FootLock(SK, ramp=4)
-    got = []
+    got, got_roots = [], []
     for t in range(len(q)):
         live.push(roots[t:t + 1], q[t:t + 1])
         k = t - 4
         if k >= 0:
-            got.append(live.apply(k, roots[k:k + 1], q[k:k + 1], out_in[k:k + 1])[0])
+            r, frame = live.apply(k, roots[k:k + 1], q[k:k + 1], out_in[k:k + 1])
+            got.append(frame[0])
+            got_roots.append(r[0])
     assert rot.angle_between(np.array(got), expected[:len(got)]).max() < 1e-9
+    np.testing.assert_allclose(np.array(got_roots), expected_roots[:len(got)], atol=1e-9)
+    assert np.ptp(expected_roots[:, 1]) > 0.5  # the pelvis height really moved
 
 
-def test_nothing_changes_where_no_foot_is_planted():
+def test_nothing_changes_where_no_foot_is_planted_or_near_the_floor():
     roots, q = stepping(120)
-    roots = roots + np.array([0.0, 50.0, 0.0])  # jumped: both feet half a metre up...
-    roots[:, 2] = 5.0 * np.arange(len(roots))  # ...and moving fast
+    roots[10:, 1] += 50.0  # after 10 frames on the floor, jumped: both feet half a metre up...
+    roots[:, 2] = 5.0 * np.arange(len(roots))  # ...and moving fast all along: never planted
+    lock = FootLock(SK)
+    assert not lock.push(roots, q).any()
+    out_in = restyled(q)
+    new_roots, out = lock.apply(0, roots, q, out_in)
+    np.testing.assert_array_equal(new_roots, roots)
+    np.testing.assert_array_equal(out[10:], out_in[10:])
+
+
+def crouched(q: np.ndarray, degrees: float = 15.0) -> np.ndarray:
+    """A 'restyle' into a lower stance: both thighs forward by an angle and both knees
+    bent back by twice that, so each ankle ends up nearly straight above where the input
+    put it (thigh and shin are about as long), centimetres up (the root did not move)."""
+    out = q.copy()
+    a = np.radians(degrees)
+    for side in ("Left", "Right"):
+        for bone, angle in (("UpperLeg", -a), ("LowerLeg", 2 * a)):
+            j = HUMANOID_BONES.index(f"{side}{bone}")
+            out[:, j] = rot.multiply(out[:, j], rot.exp_map(np.array([angle, 0.0, 0.0])))
+    return out
+
+
+def knee_angles(roots, rotations):
+    p, _, _ = leg_chain(roots, rotations, SK.offsets)
+    thigh, shin = p[:, :, 0] - p[:, :, 1], p[:, :, 2] - p[:, :, 1]
+    cos = np.sum(thigh * shin, -1) / np.linalg.norm(thigh, axis=-1) / np.linalg.norm(shin, axis=-1)
+    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+
+
+def test_the_pelvis_lowers_so_a_restyled_knee_bend_stands_on_the_planted_feet():
+    roots, q = stepping(240)
+    standing = np.tile(q[:1], (240, 1, 1))  # both feet planted all the time
+    roots = np.tile(roots[:1], (240, 1))
+    out_in = crouched(standing)
+    p_in, _, _ = leg_chain(roots, standing, SK.offsets)
+    p_raw, _, _ = leg_chain(roots, out_in, SK.offsets)
+    gap = float(np.mean(p_raw[-1, :, 2, 1] - p_in[-1, :, 2, 1]))
+    assert gap > 3.0  # the crouch lifts both ankles off the floor
+
+    def lock(settings=ContactSettings()):
+        fl = FootLock(SK, settings=settings)
+        contacts = fl.push(roots, standing)
+        return contacts, *fl.apply(0, roots, standing, out_in)
+
+    contacts, new_roots, locked = lock()
+    _, flat_roots, straightened = lock(ContactSettings(pelvis_tau=0))
+    np.testing.assert_array_equal(flat_roots, roots)  # off: the root passes through
+    settled = slice(120, None)
+    # The hips come down by the gap, only vertically, and the restyled knee bend is kept
+    # (without the adjustment the IK straightens the legs back to the input's).
+    np.testing.assert_allclose(roots[settled, 1] - new_roots[settled, 1], gap, atol=0.05)
+    np.testing.assert_array_equal(new_roots[:, [0, 2]], roots[:, [0, 2]])
+    bend_in, bend_restyled = knee_angles(roots, standing), knee_angles(roots, out_in)
+    bend_locked, bend_flat = knee_angles(new_roots, locked), knee_angles(flat_roots, straightened)
+    assert np.abs(bend_locked[settled] - bend_restyled[settled]).max() < 0.5  # degrees
+    assert np.abs(bend_flat[settled] - bend_in[settled]).max() < 0.5
+    assert (bend_in - bend_restyled)[settled].min() > 20.0  # the two really differ
+    p_out, _, _ = leg_chain(new_roots, locked, SK.offsets)
+    assert np.linalg.norm(p_out[:, :, 2] - p_in[:, :, 2], axis=-1)[contacts].max() < 0.1  # feet planted
+    # The hips settle smoothly from the stream's start (no step in height or speed).
+    assert np.abs(np.diff(new_roots[:, 1], 2)).max() < 0.1 * gap
+
+
+def test_an_unchanged_output_leaves_the_pelvis_and_legs_alone():
+    roots, q = stepping(180)
     lock = FootLock(SK)
     lock.push(roots, q)
-    out_in = restyled(q)
-    assert np.array_equal(lock.apply(0, roots, q, out_in), out_in)
+    new_roots, out = lock.apply(0, roots, q, q)
+    np.testing.assert_allclose(new_roots, roots, atol=1e-9)
+    assert rot.angle_between(out, q).max() < 1e-6
+
+
+def test_the_pelvis_never_moves_further_than_its_cap():
+    roots, q = stepping(240)
+    standing = np.tile(q[:1], (240, 1, 1))
+    roots = np.tile(roots[:1], (240, 1))
+    fl = FootLock(SK, settings=ContactSettings(pelvis_cap=1.0))
+    fl.push(roots, standing)
+    new_roots, _ = fl.apply(0, roots, standing, crouched(standing, 40.0))
+    drop = roots[:, 1] - new_roots[:, 1]
+    assert drop.max() <= 1.0 + 1e-9 and drop[-1] > 0.99
+
+
+def test_a_foot_in_the_air_is_kept_above_the_floor():
+    """Standing, then gliding off (no foot planted): the restyle crouches while standing,
+    so the pelvis comes down, then gives the input's legs back. Held at the lowered height
+    through the glide, the input's legs would push the feet through the floor."""
+    roots, q = stepping(240)
+    q = np.tile(q[:1], (240, 1, 1))
+    roots = np.tile(roots[:1], (240, 1))
+    roots[120:, 2] = 5.0 * np.arange(120)  # from frame 120 on: moving fast, nothing planted
+    restyled_ = q.copy()
+    restyled_[:130] = crouched(q[:130])  # crouched until the feet are off
+    lock = FootLock(SK)
+    contacts = lock.push(roots, q)
+    assert contacts[1:110].all() and not contacts[125:].any()
+    new_roots, out = lock.apply(0, roots, q, restyled_)
+    assert (roots[200:, 1] - new_roots[200:, 1]).min() > 5.0  # the pelvis height is held
+    p_in, _, _ = leg_chain(roots, q, SK.offsets)
+    p_raw, _, _ = leg_chain(new_roots, restyled_, SK.offsets)
+    p_out, _, _ = leg_chain(new_roots, out, SK.offsets)
+    floor = np.minimum.accumulate(p_in[:, :, 3, 1].min(axis=1))  # the lowest ball so far
+    limit = np.minimum(floor[:, None] + lock._ankle_rest, p_in[:, :, 2, 1])
+    assert (limit - p_raw[:, :, 2, 1]).max() > 3.0  # without the floor: centimetres under
+    assert (limit - p_out[:, :, 2, 1]).max() < 1e-6  # with it: nowhere below
+    lengths = np.linalg.norm(p_out[:, :, 2] - p_out[:, :, 1], axis=-1)
+    np.testing.assert_allclose(lengths, np.linalg.norm(SK.offsets[LEGS[0][2]]), atol=1e-9)
+
+
+def test_a_foot_pitched_into_the_floor_is_lifted_onto_it():
+    roots, q = stepping(120)
+    q = np.tile(q[:1], (120, 1, 1))  # standing pose, gliding: nothing planted
+    roots = np.tile(roots[:1], (120, 1))
+    roots[:, 2] = 5.0 * np.arange(120)
+    toes_down = q.copy()
+    for side in ("Left", "Right"):
+        j = HUMANOID_BONES.index(f"{side}Foot")
+        toes_down[:, j] = rot.multiply(q[:, j], rot.exp_map(np.array([0.5, 0.0, 0.0])))
+    lock = FootLock(SK)
+    assert not lock.push(roots, q).any()
+    new_roots, out = lock.apply(0, roots, q, toes_down)
+    p_in, w_in, _ = leg_chain(roots, q, SK.offsets)
+    p_raw, w_raw, _ = leg_chain(new_roots, toes_down, SK.offsets)
+    p_out, w_out, _ = leg_chain(new_roots, out, SK.offsets)
+    floor = p_in[:, :, 3, 1].min()
+    assert (floor - p_raw[:, :, 3, 1]).min() > 2.0  # the balls go centimetres under
+    np.testing.assert_allclose(p_out[:, :, 3, 1], floor, atol=1e-6)  # lifted onto the floor...
+    assert rot.angle_between(w_out[:, :, 2], w_raw[:, :, 2]).max() < 1e-6  # ...the foot turned as restyled
+    np.testing.assert_allclose(p_out[:, :, 2, [0, 2]], p_raw[:, :, 2, [0, 2]], atol=1e-6)  # straight up
+
+
+def test_the_soft_floor_is_continuous_with_its_slope_and_never_lifts_above_the_input():
+    from stylecast.motion.footlock import FLOOR_MARGIN, _soft_floor
+
+    h = np.linspace(-3.0, 3.0, 6001) * FLOOR_MARGIN
+    zero, high = np.zeros_like(h), np.full_like(h, 100.0)
+    eased = _soft_floor(h, zero, high)
+    assert eased.min() >= 0.0  # nothing below the floor
+    np.testing.assert_array_equal(eased[h >= FLOOR_MARGIN], h[h >= FLOOR_MARGIN])  # untouched above the edge
+    slope = np.diff(eased) / np.diff(h)
+    assert np.all(np.diff(eased) >= 0) and np.abs(np.diff(slope)).max() < 0.01  # no corner
+    own = np.full_like(h, 0.1 * FLOOR_MARGIN)  # the input's own foot lower than the edge
+    capped = _soft_floor(h, zero, own)
+    assert np.all(capped[h < own] <= own[h < own] + 1e-12)
+    np.testing.assert_array_equal(capped[h >= own], h[h >= own])
 
 
 def test_the_ramp_never_looks_further_ahead_than_the_stream_delay():

@@ -301,10 +301,10 @@ def test_a_clip_shorter_than_a_word_is_padded_and_restyled():
         extra = rot.from_euler(np.array([0.0, 0.0, 10.0]), "XZY")
         return rot.multiply(extra, words)
 
-    out = restyle_rotations(clip, lean, hop=20)
+    out = restyle_rotations(clip, lean, hop=20).rotations
     assert out.shape == clip.shape and sum(calls) >= 1
     assert rot.angle_between(out, rot.multiply(rot.from_euler(np.array([0.0, 0.0, 10.0]), "XZY"), clip)).max() < 0.5
-    ident = restyle_rotations(clip[:1], lambda w: w, hop=60)
+    ident = restyle_rotations(clip[:1], lambda w: w, hop=60).rotations
     assert rot.angle_between(ident, clip[:1]).max() < 1e-6
 
 

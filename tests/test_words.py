@@ -49,7 +49,7 @@ def test_cutter_emits_words_on_the_hop_grid():
 
 def test_identity_restyler_is_transparent():
     motion = smooth_motion(300)
-    out = restyle_stream(motion, lambda w: w, BlendSettings(hop=15))
+    out = restyle_stream(motion, lambda w: w, BlendSettings(hop=15)).rotations
     assert rot.angle_between(out, motion).max() < 1e-6
 
 
@@ -57,8 +57,8 @@ def test_identity_restyler_is_transparent():
 def test_offset_blend_removes_the_seam_that_plain_switching_shows(hop):
     motion = smooth_motion(600)
     # the blender alone: the correction filter after it would hide plain switching too
-    blended = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop, correction_tau=0))
-    plain = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop, decay_frames=0, correction_tau=0))
+    blended = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop, correction_tau=0)).rotations
+    plain = restyle_stream(motion, biased_restyler(), BlendSettings(hop=hop, decay_frames=0, correction_tau=0)).rotations
     assert seam_ratio(blended, hop) < 1.10
     assert seam_ratio(plain, hop) > 3.0
 
@@ -69,7 +69,7 @@ def test_output_follows_the_restyled_words_between_seams(hop):
     settle, or the output would keep the input's pose and only borrow the words' motion."""
     motion = smooth_motion(400)
     constant = rot.from_euler(np.full((J, 3), 20.0), "ZXY")
-    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), BlendSettings(hop=hop))
+    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), BlendSettings(hop=hop)).rotations
     expected = rot.multiply(np.broadcast_to(constant, motion.shape), motion)
     # The seam offset left by the fade-in settles exponentially (time constant <= 15 frames).
     assert rot.angle_between(out[300:], expected[300:]).max() < 1e-3
@@ -79,7 +79,7 @@ def test_start_is_pass_through_then_fades_in_without_a_jump():
     motion = smooth_motion(200)
     settings = BlendSettings(hop=15, crossfade_frames=20)
     constant = rot.from_euler(np.full((J, 3), 30.0), "ZXY")
-    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), settings)
+    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), settings).rotations
     first_due = 60 - settings.delay  # the first word is due one frame after frame 59
     assert rot.angle_between(out[:first_due], motion[:first_due]).max() < 1e-9
     jumps = rot.angle_between(out[1:], out[:-1]).max(axis=1)
@@ -123,7 +123,7 @@ def test_frame_by_frame_rendering_equals_block_rendering():
     whole clips: same frames."""
     motion = smooth_motion(500)
     settings = BlendSettings(hop=10)
-    block = restyle_stream(motion, biased_restyler(seed=4), settings)
+    block = restyle_stream(motion, biased_restyler(seed=4), settings).rotations
     restyle = biased_restyler(seed=4)
     cutter, blender, out = WordCutter(10), SeamBlender(settings, J), []
     smoothing = CorrectionFilter(J, settings.correction_tau)
@@ -145,7 +145,7 @@ def test_phase_shifts_the_word_grid_and_the_blend_follows_it():
     assert ends[:3] == [66, 81, 96]
     constant = rot.from_euler(np.full((J, 3), 20.0), "ZXY")
     out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w),
-                         BlendSettings(hop=15, phase=7))
+                         BlendSettings(hop=15, phase=7)).rotations
     first_due = 66 + 1 - 15  # one phase later than at phase 0
     assert rot.angle_between(out[:first_due], motion[:first_due]).max() < 1e-9
     assert rot.angle_between(out[first_due], motion[first_due]).max() > 0  # the fade-in has begun
