@@ -285,9 +285,9 @@ class FootLock:
             result[rows[:, None, None], LEG_INDEX[None]] = rot.slerp(outputs[rows][:, LEG_INDEX], target, weight)
             self.locked_frames += int(np.count_nonzero(w >= 1.0))
         floor = self._floors[np.arange(t0, t0 + len(roots)) - self._base]
-        return new_roots, self._keep_above_floor(roots, new_roots, inputs, result, floor)
+        return new_roots, self._keep_above_floor(roots, new_roots, inputs, result, floor, w < 1.0)
 
-    def _keep_above_floor(self, roots, new_roots, inputs, outputs, floor):
+    def _keep_above_floor(self, roots, new_roots, inputs, outputs, floor, free):
         """A foot in the air can go through the floor the input's foot cleared: a restyled
         leg straighter than the input's, a foot pitched further down, or (most, measured
         2.7 cm at the 99th percentile on held-out clips without this step) the lowered
@@ -296,10 +296,13 @@ class FootLock:
         knee its plane) until both clear it, through a soft edge (``_soft_floor``), never
         higher than the input's own foot there. Lifting the ankle rather than pitching the
         foot up: a foot pointing down needs a large turn for a small lift (measured: an
-        8-degree pop in one frame)."""
+        8-degree pop in one frame). A fully locked foot (not ``free``) is the input's own,
+        above the floor by definition, and is skipped: most frames of a stream."""
+        if not free.any():
+            return outputs
         ankle, ball = self._feet(new_roots, outputs)
-        near = (ankle[..., 1] < floor[:, None] + self._ankle_rest + FLOOR_MARGIN) | (
-            ball[..., 1] < floor[:, None] + FLOOR_MARGIN)
+        near = free & ((ankle[..., 1] < floor[:, None] + self._ankle_rest + FLOOR_MARGIN) | (
+            ball[..., 1] < floor[:, None] + FLOOR_MARGIN))
         rows = np.flatnonzero(near.any(axis=1))
         if len(rows) == 0:
             return outputs
@@ -309,7 +312,7 @@ class FootLock:
         up = np.maximum(
             _soft_floor(pos[:, :, 2, 1], np.minimum(below + self._ankle_rest, own_ankle), own_ankle) - pos[:, :, 2, 1],
             _soft_floor(pos[:, :, 3, 1], np.minimum(below, own_ball), own_ball) - pos[:, :, 3, 1])
-        lift = up > 0
+        lift = near[rows] & (up > 0)
         if not lift.any():
             return outputs
         target = pos[:, :, 2].copy()
