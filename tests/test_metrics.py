@@ -34,7 +34,7 @@ def jittered(q: np.ndarray, degrees: float, seed: int = 1) -> np.ndarray:
 
 def test_identity_restyle_scores_the_inputs_values():
     q, roots = smooth_motion()
-    m = _clip_measures(q, q.copy(), roots, humanoid_skeleton_default())
+    m = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
     g_in, g_out = M.group_means(m["jerk_in"]), M.group_means(m["jerk_out"])
     assert all(g_out[g] == pytest.approx(g_in[g]) for g in g_in)
     np.testing.assert_allclose(m["slide_out"], m["slide_in"])
