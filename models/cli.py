@@ -80,6 +80,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                      "timing, seams, against the input and the baselines")
     p.add_argument("--model", default=None, help="model under test (default normal2exhausted)")
     p.add_argument("--direction", choices=("a2b", "b2a"), default="a2b")
+    p.add_argument("--target", action="append", metavar="STYLE",
+                   help="target style to measure (repeat for several, or 'all': every style but the source); "
+                        "default: the model's target (a multistyle model needs it)")
     p.add_argument("--variant", action="append", default=[], metavar="NAME=PATH",
                    help="another model to measure beside it (repeat)")
     p.add_argument("--out", type=Path, required=True, help="report folder (report.md, plots, metrics.json)")
@@ -191,6 +194,7 @@ def run_eval(args) -> int:
         variants[name] = path
     _threads(args.threads)
     path = evaluate(args.model, args.out, variants, max_files=args.max_files, hop=args.hop or DEFAULT_HOP,
-                    data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction)
+                    data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction,
+                    targets=args.target)
     print(f"wrote {path}")
     return 0

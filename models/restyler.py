@@ -97,6 +97,11 @@ class Restyler:
         """The style ``stylecast eval`` restyles from: the model's source."""
         return self.source_style
 
+    @property
+    def default_target(self) -> str | None:
+        """The style ``stylecast eval`` measures when none is named."""
+        return self.target_style
+
     def with_direction(self, direction: str) -> "Restyler":
         return Restyler(self.model, self.rep, self.metadata, direction, self.path)
 

@@ -68,6 +68,10 @@ class MultiStyleRestyler(Restyler):
         return "normal"  # the bar is read from normal input
 
     @property
+    def default_target(self) -> None:
+        return None  # any style: ``stylecast eval`` needs --target
+
+    @property
     def target_style(self) -> str:
         return describe_mix(self.weights, self.style_names)
 

@@ -226,3 +226,26 @@ def test_restyle_refuses_an_unknown_style_before_reading_anything(tmp_path, caps
                  str(tmp_path / "absent.safetensors"), "--style", "sleepy"])
     err = capsys.readouterr().err
     assert code == 2 and "unknown style 'sleepy'" in err and "youthful" in err and "Traceback" not in err
+
+
+def test_eval_refuses_an_unknown_target_and_needs_one_for_a_multistyle_model(tmp_path, capsys):
+    assert main(["eval", "--model", str(tmp_path / "absent.safetensors"), "--target", "sleepy",
+                 "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown style 'sleepy'" in err and "elderly" in err and "Traceback" not in err
+    train_multistyle(_tiny_cfg(), tmp_path / "m", _tiny_words(), device="cpu", progress=False, log=lambda *_: None)
+    assert main(["eval", "--model", str(tmp_path / "m" / "model.safetensors"), "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "--target" in err and "youthful" in err and "Traceback" not in err
+    assert main(["eval", "--model", "normal2exhausted", "--target", "elderly", "--out", str(tmp_path / "e")]) == 2
+    assert "not towards 'elderly'" in capsys.readouterr().err
+
+
+def test_pca_projection_keeps_the_main_axis():
+    from stylecast.models.eval import pca_2d
+
+    rng = np.random.default_rng(0)
+    x = np.c_[rng.normal(size=200) * 10, rng.normal(size=200), rng.normal(size=200) * 0.1]
+    xy, var = pca_2d(x)
+    assert xy.shape == (200, 2) and var[0] > 0.95 and var[0] > var[1]
+    assert abs(np.corrcoef(xy[:, 0], x[:, 0])[0, 1]) > 0.99
