@@ -12,12 +12,14 @@ the pair restyler's (``restyler.Restyler``).
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from stylecast.motion.errors import UserError
 
 from .restyler import Restyler, build_checked, network_config, register_kind
-from .styles import STYLES, describe_mix, one_hot, parse_mix
+from .styles import NEUTRAL, STYLES, describe_mix, one_hot, parse_mix
 
 KIND = "multistyle"
 
@@ -34,7 +36,7 @@ class MultiStyleRestyler(Restyler):
         self.device = next(self.model.parameters()).device
         self._trep = None
         self.style_names = tuple(metadata["styles"])
-        self.weights = one_hot("normal", self.style_names) if weights is None else np.asarray(weights, np.float64)
+        self.weights = one_hot(NEUTRAL, self.style_names) if weights is None else np.asarray(weights, np.float64)
         self.intensity = float(intensity)
 
     @classmethod
@@ -65,7 +67,7 @@ class MultiStyleRestyler(Restyler):
 
     @property
     def eval_source(self) -> str:
-        return "normal"  # the issue's bar is read from normal input
+        return NEUTRAL  # the issue's bar is read from normal input
 
     @property
     def default_target(self) -> None:
@@ -81,8 +83,15 @@ class MultiStyleRestyler(Restyler):
 
     # -- choosing the style -----------------------------------------------------------------
     def with_mix(self, weights, intensity: float | None = None) -> "MultiStyleRestyler":
-        return MultiStyleRestyler(self.model, self.rep, self.metadata, weights, self.path,
-                                  self.intensity if intensity is None else intensity)
+        """The same model (shared, not copied) with another mix."""
+        w = np.asarray(weights, np.float64)
+        if w.shape != (len(self.style_names),) or not (np.all(np.isfinite(w)) and np.all(w >= 0) and w.sum() > 0):
+            raise UserError(f"a style mix needs {len(self.style_names)} finite weights >= 0 with a positive sum, "
+                            f"got {w.tolist()}")
+        other = copy.copy(self)
+        other.weights = w / w.sum()
+        other.intensity = self.intensity if intensity is None else float(intensity)
+        return other
 
     def with_style(self, text: str) -> "MultiStyleRestyler":
         return self.with_mix(parse_mix(text, self.style_names))

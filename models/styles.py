@@ -19,6 +19,7 @@ import numpy as np
 from stylecast.motion.errors import UserError
 
 STYLES = ("active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful")
+NEUTRAL = "normal"  # the dataset's neutral style: a multi-style model's default, a weight's remainder
 
 
 def check_style(name: str, known=STYLES) -> int:
