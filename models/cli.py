@@ -83,6 +83,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--target", action="append", metavar="STYLE",
                    help="target style to measure (repeat for several, or 'all': every style but the source); "
                         "default: the model's target (a multistyle model needs it)")
+    p.add_argument("--source", metavar="STYLE",
+                   help="style of the held-out clips to restyle (default: the model's source; normal for a "
+                        "multistyle model, which takes any)")
     p.add_argument("--variant", action="append", default=[], metavar="NAME=PATH",
                    help="another model to measure beside it (repeat)")
     p.add_argument("--out", type=Path, required=True, help="report folder (report.md, plots, metrics.json)")
@@ -195,6 +198,6 @@ def run_eval(args) -> int:
     _threads(args.threads)
     path = evaluate(args.model, args.out, variants, max_files=args.max_files, hop=args.hop or DEFAULT_HOP,
                     data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction,
-                    targets=args.target)
+                    targets=args.target, source=args.source)
     print(f"wrote {path}")
     return 0

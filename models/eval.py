@@ -120,7 +120,9 @@ def _optional_model(name: str, log) -> Restyler | None:
         return None
 
 
-def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRestyler, log) -> list[Variant]:
+def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRestyler, log,
+                   source: str | None = None) -> list[Variant]:
+    source = source or proposed.eval_source
     out = [Variant("input", None, "the input itself"),
            Variant("posture", posture.restyle_words, "mean pose difference of the styles added to the input")]
     for name, note in ((SHIPPED_V1, "first shipped model (free full-rate correction, no foot lock in training)"),
@@ -133,6 +135,9 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
             other = Restyler.load(path).for_target(proposed.target_style)
         except UserError as exc:  # a pair model beside a multi-style one: only its own target
             log(f"skipping {name} for {proposed.target_style}: {exc}")
+            continue
+        if not other.accepts_source(source):
+            log(f"skipping {name}: it restyles {other.source_style} input, not {source}")
             continue
         out.append(Variant(name, other.restyle_words, f"`{path}` ({other.name}, {other.source_style} -> "
                                                       f"{other.target_style})"))
@@ -188,30 +193,36 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
 
 def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str] | None = None,
              max_files: int | None = None, hop: int = DEFAULT_HOP, data_dir=None, cache_dir=None,
-             seed: int = 0, direction: str = "a2b", log=print, targets: list[str] | None = None) -> Path:
+             seed: int = 0, direction: str = "a2b", log=print, targets: list[str] | None = None,
+             source: str | None = None) -> Path:
     """Evaluate ``model`` towards each of ``targets`` (default: the model's own target; a
     multi-style model needs them named). One target: the report in ``out``; several: one
     folder per target under ``out`` and ``out/summary.md`` beside them. The judges are
-    trained once and shared."""
+    trained once and shared. ``source``: the style of the held-out clips restyled (default
+    the model's source; normal for a multi-style model, which takes any)."""
     import torch
 
     from .styles import STYLES, check_style
 
-    for t in targets or []:
+    for t in [*(targets or []), *([source] if source else [])]:
         if t != "all":
             check_style(t)  # one sentence naming the known styles, before minutes of loading
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     loaded = Restyler.load(model, direction)
+    source = source or loaded.eval_source
+    if not loaded.accepts_source(source):
+        raise UserError(f"model {loaded.name} restyles from {loaded.eval_source} in this direction, not from {source}; "
+                        f"drop --source or use --direction")
     if targets == ["all"]:
-        targets = [s for s in STYLES if s != loaded.eval_source]
+        targets = [s for s in STYLES if s != source]
     targets = list(targets or ([loaded.default_target] if loaded.default_target else []))
     if not targets:
         raise UserError(f"model {loaded.name} can restyle towards any style; name one or more with --target "
-                        f"({', '.join(s for s in STYLES if s != loaded.eval_source)})")
-    if loaded.eval_source in targets:
-        raise UserError(f"--target {loaded.eval_source} is the style the evaluation restyles from; choose another "
+                        f"({', '.join(s for s in STYLES if s != source)})")
+    if source in targets:
+        raise UserError(f"--target {source} is the style the evaluation restyles from; choose another "
                         f"target")
     proposed = {t: loaded.for_target(t) for t in targets}  # a pair model refuses a style it lacks, here
     files = D.list_files(data_dir)
@@ -230,7 +241,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
         judge_check[s] = {"windows": int(len(w)), "style_accuracy": float(np.mean(judges.style.predict(w) == k)),
                           "action_accuracy": float(np.mean(judges.action.predict(w) == np.concatenate(
                               [np.full(len(x), actions.index(m.file.action)) for x, m in zip(real[s], held[s])])))}
-    shared = dict(files=files, styles=styles, actions=actions, skeleton=skeleton, judges=judges, held=held,
+    shared = dict(source=source, files=files, styles=styles, actions=actions, skeleton=skeleton, judges=judges, held=held,
                   real=real, judge_check=judge_check, per_style=per_style, cache_dir=cache_dir, hop=hop, log=log)
     space = _style_space_plot(out, loaded, judges, real, styles)
     if len(targets) == 1:
@@ -244,10 +255,10 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
     return write_summary(out / "summary.md", str(loaded.path), summary, space, time.perf_counter() - t0)
 
 
-def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *, files, styles, actions, skeleton,
+def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *, source, files, styles, actions, skeleton,
                      judges, held, real, judge_check, per_style, cache_dir, hop, log, extra_plots=()) -> Path:
     out.mkdir(parents=True, exist_ok=True)
-    source, target = proposed.eval_source, proposed.target_style
+    target = proposed.target_style
     target_k = styles.index(target)
     real_target = np.concatenate(real[target])
     target_train = training_motions(files, [target], per_style, cache_dir)
@@ -271,7 +282,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     posture = PostureRestyler.from_data(source, target, files, cache_dir, per_style)
     results: dict = {}
     outputs_for_plot: dict = {}
-    for variant in build_variants(proposed, variants, posture, log):
+    for variant in build_variants(proposed, variants, posture, log, source):
         for setting, live, skip in SETTINGS:
             per_clip, preds, acts, feats, ds, masks = [], [], [], [], [], []
             for m in clips:

@@ -97,6 +97,10 @@ class Restyler:
         """The style ``stylecast eval`` restyles from: the model's source."""
         return self.source_style
 
+    def accepts_source(self, style: str) -> bool:
+        """Whether this restyler is meant for input of ``style``."""
+        return style == self.source_style
+
     @property
     def default_target(self) -> str | None:
         """The style ``stylecast eval`` measures when none is named."""

@@ -69,6 +69,9 @@ class MultiStyleRestyler(Restyler):
     def eval_source(self) -> str:
         return NEUTRAL  # the issue's bar is read from normal input
 
+    def accepts_source(self, style: str) -> bool:
+        return True  # only the target is given to the generator: any input style
+
     @property
     def default_target(self) -> None:
         return None  # any style: ``stylecast eval`` needs --target
@@ -104,6 +107,24 @@ class MultiStyleRestyler(Restyler):
                         f"/stylecast/style NAME)")
 
     # -- inference ------------------------------------------------------------------------
+    def generator(self, direction=None):
+        """The generator conditioned on this restyler's mix: a module of x (B, F, T) alone,
+        as the pair's ``generator()`` (benchmarks time it)."""
+        from torch import nn
+
+        model, weights = self.model, self.weights
+
+        class Conditioned(nn.Module):
+            def __init__(self):
+                super().__init__()
+                self.net = model
+
+            def forward(self, x):
+                w = x.new_tensor(weights).expand(x.shape[0], -1)
+                return self.net(x, w)
+
+        return Conditioned()
+
     def restyle_words(self, words, weights=None):
         """Words (B, 60, 22, 4) -> restyled, one batched call; ``weights`` (B, S) gives each
         word its own mix (default: the restyler's mix for all)."""

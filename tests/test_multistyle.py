@@ -239,6 +239,10 @@ def test_eval_refuses_an_unknown_target_and_needs_one_for_a_multistyle_model(tmp
     assert "--target" in err and "youthful" in err and "Traceback" not in err
     assert main(["eval", "--model", "normal2exhausted", "--target", "elderly", "--out", str(tmp_path / "e")]) == 2
     assert "not towards 'elderly'" in capsys.readouterr().err
+    assert main(["eval", "--model", "normal2exhausted", "--source", "elderly", "--out", str(tmp_path / "e")]) == 2
+    assert "not from elderly" in capsys.readouterr().err
+    assert main(["eval", "--model", "normal2exhausted", "--source", "sleepy", "--out", str(tmp_path / "e")]) == 2
+    assert "unknown style 'sleepy'" in capsys.readouterr().err
 
 
 def test_pca_projection_keeps_the_main_axis():
