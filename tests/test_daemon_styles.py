@@ -138,3 +138,20 @@ def test_a_style_command_to_a_model_without_codes_is_refused_in_one_sentence():
             daemon.apply("style", (("elderly", 1.0),))
     finally:
         daemon.close()
+
+
+def test_the_viewer_reads_the_style_mix_from_the_status_reply_and_older_daemons_still_parse():
+    from stylecast.daemon.status import status_messages
+    from stylecast.viewer.status import parse_status
+
+    perf = {"performer": "alice", "frames_in": 10, "frames_out": 9, "latency_p50_ms": 80.0, "latency_p99_ms": 90.0,
+            "late": 0, "held": 0, "skipped": 0, "words_failed": 0, "intensity": 1.0, "bypass": False, "lost": False,
+            "style": "elderly 0.50 + youthful 0.50"}
+    snap = {"daemon": {"style": "any->normal", "model": "multistyle", "performers": 1, "ticks": 10,
+                       "dropped_ticks": 0, "faults": 0, "control_refused": 0}, "performers": [perf]}
+    tagged = [(a, "".join("s" if isinstance(v, str) else "f" if isinstance(v, float) else "i" for v in args), args)
+              for a, args in status_messages(snap)]
+    status = parse_status(tagged)
+    assert status.performers[0].style == "elderly 0.50 + youthful 0.50"
+    old = [(a, t[:12], args[:12]) for a, t, args in tagged]  # a daemon from before the style mix
+    assert parse_status(old).performers[0].style == ""
