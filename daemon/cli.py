@@ -57,6 +57,8 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", default=None, help="model name or checkpoint path (default normal2exhausted); "
                                                  "'identity' runs without a model")
     p.add_argument("--direction", default=None, help="restyling direction of the model")
+    p.add_argument("--style", default=None, metavar="NAME[:W,NAME:W...]",
+                   help="style of a multi-style model, or a mix such as elderly:0.5,youthful:0.5")
     p.add_argument("--control", default=None, metavar="HOST:PORT",
                    help="OSC control port (default 127.0.0.1:39570; 'off' disables)")
     p.add_argument("--allow", action="append", default=None, metavar="ADDR",
@@ -73,7 +75,7 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
 
 
 _CONFIG_KEYS = ("source", "out", "out_input", "record", "latency", "hop", "delay", "decay", "crossfade", "intensity",
-                "bypass", "model", "direction", "control", "allow", "status_interval", "bundled", "duration",
+                "bypass", "model", "direction", "style", "control", "allow", "status_interval", "bundled", "duration",
                 "device", "workers")
 
 

@@ -12,6 +12,9 @@ README's table of addresses is this table.
     /stylecast/crossfade  f seconds               length of every fade from the next one on
     /stylecast/direction  s name                  e.g. "a2b" / "b2a" for the loaded model
     /stylecast/model      s name-or-path          loaded in the background, then swapped
+    /stylecast/style      s name [f weight] [s performer]   a style of a multi-style model;
+                                              weight < 1 leaves the rest to normal
+    /stylecast/mix        s name f w [s name f w ...] [s performer]   a weighted style mix
     /stylecast/calibrate  [s performer]           tracker sources: calibrate on the next frames
     /stylecast/status                             replied to the sender (see status.py)
 
@@ -26,11 +29,13 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from stylecast.motion.clock import OUTPUT_FPS as FPS
+from stylecast.models.styles import NEUTRAL
 from stylecast.motion.errors import UserError
 
 PREFIX = "/stylecast/"
 MAX_CROSSFADE_S = 60.0
 MAX_NAME = 512
+MAX_MIX = 16  # name/weight pairs in one /stylecast/mix
 
 
 @dataclass(frozen=True)
@@ -83,6 +88,40 @@ def _nothing(args: tuple) -> bool:
     return True
 
 
+def _without_performer(args: tuple) -> tuple:
+    """A style command's own arguments: a trailing performer name is parse_command's."""
+    return args[:-1] if len(args) % 2 == 1 and len(args) > 1 and isinstance(args[-1], str) else args
+
+
+def _weight(value) -> float | None:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    return float(value) if ok and 0.0 <= value <= 1e6 else None
+
+
+def _style(args: tuple) -> tuple | None:
+    """NAME [WEIGHT]: ((name, w), (NEUTRAL, 1 - w)); names are checked when applied,
+    against the model's own styles, so a typo gets the sentence listing them."""
+    if len(args) >= 2 and isinstance(args[-1], str):
+        args = args[:-1]  # the performer: parse_command's
+    if not 1 <= len(args) <= 2 or _name(args) is None:
+        return None
+    w = _weight(args[1]) if len(args) == 2 else 1.0
+    if w is None or w > 1.0:
+        return None
+    return ((args[0], w),) + (((NEUTRAL, 1.0 - w),) if w < 1.0 else ())
+
+
+def _mix(args: tuple) -> tuple | None:
+    """NAME W NAME W ...: ((name, w), ...); weights are normalised when applied."""
+    args = _without_performer(args)
+    if not args or len(args) % 2 or len(args) > 2 * MAX_MIX:
+        return None
+    pairs = tuple(zip(args[0::2], args[1::2]))
+    if any(_name((n,)) is None or _weight(w) is None for n, w in pairs):
+        return None
+    return tuple((n, _weight(w)) for n, w in pairs)
+
+
 # -- applying: typed value -> daemon state (output loop, start of a tick) --------------
 
 def _set_intensity(daemon, value, sessions, reply_to) -> None:
@@ -109,6 +148,10 @@ def _load_model(daemon, value, sessions, reply_to) -> None:
     daemon.load_model_async(str(value))
 
 
+def _set_style(daemon, value, sessions, reply_to) -> None:
+    daemon.set_style(value, sessions)
+
+
 def _calibrate(daemon, value, sessions, reply_to) -> None:
     able = [s for s in sessions if callable(getattr(s.source, "calibrate", None))]
     if not able:
@@ -128,6 +171,8 @@ COMMANDS: dict[str, Command] = {c.address: c for c in (
     Command("crossfade", _seconds, _set_crossfade),
     Command("direction", _name, _set_direction),
     Command("model", _name, _load_model),
+    Command("style", _style, _set_style, per_performer=True),
+    Command("mix", _mix, _set_style, per_performer=True),
     Command("calibrate", _nothing, _calibrate, per_performer=True),
     Command("status", _nothing, _status),
 )}

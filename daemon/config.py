@@ -42,6 +42,7 @@ class DaemonConfig:
     bypass: bool = False
     model: str = "normal2exhausted"
     direction: str = ""
+    style: str = ""  # a multi-style model's style or mix "NAME:W,NAME:W"; "" = the model's own
     control: str = f"127.0.0.1:{DEFAULT_CONTROL_PORT}"  # "off" disables it
     allow: list[str] = field(default_factory=lambda: list(DEFAULT_ALLOW))
     status_interval: float = 5.0
@@ -71,6 +72,10 @@ class DaemonConfig:
             raise UserError("--status-interval must be positive")
         if not 1 <= self.workers <= 256:
             raise UserError(f"--workers {self.workers} is out of range; use 1 to 256 processes")
+        if self.style:
+            from stylecast.models.styles import parse_mix
+
+            parse_mix(self.style)  # unknown names: one sentence before any model or source is opened
         from stylecast.models.device import check_device_name
 
         self.device = check_device_name(self.device)

@@ -45,7 +45,7 @@ from .control import ControlServer
 from .inference import InferenceWorker
 from .latency import MAX_SLACK, calibrate, delay_line, slack_for
 from .output import PerformerSinks, open_outputs, recording_path
-from .restylers import load_restyler, model_name, style_label, with_direction
+from .restylers import load_restyler, model_name, style_label, style_mix, with_direction, with_style
 from .session import Session
 from .status import LatencyWindow, status_line, status_messages
 
@@ -108,6 +108,8 @@ class Daemon:
         self.sinks: list[PerformerSinks] = []
         if config.direction:
             restyler = with_direction(restyler, config.direction)
+        if config.style:
+            restyler = with_style(restyler, config.style)
         self.worker = InferenceWorker(restyler, clock=clock.now)
         self.delay_notes: list[str] = []  # the status lines of delay raises (also logged)
         self.first_index = first_index
@@ -271,7 +273,7 @@ class Daemon:
         batch = []
         for session in self.sessions:
             for end, word in session.ingest(now):
-                batch.append((session.index, end, word))
+                batch.append((session.index, end, word, session.style_weights()))
         self.worker.submit(batch, now)
         vmc_time = self.ticks / FPS
         for session, sinks in zip(self.sessions, self.sinks):
@@ -298,6 +300,9 @@ class Daemon:
         with self._model_lock:
             model, self._pending_model = self._pending_model, None
         if model is not None:
+            if not hasattr(model, "with_mix"):  # a model without style codes: mixes mean nothing to it
+                for s in self.sessions:
+                    s.set_style(None)
             self.worker.set_restyler(model)
             self.style = style_label(model)
             log.info("model %s is live", self.style)
@@ -343,6 +348,14 @@ class Daemon:
         model = with_direction(self.worker.restyler, direction)
         self.worker.set_restyler(model)
         self.style = style_label(model)
+
+    def set_style(self, pairs, sessions) -> None:
+        """/stylecast/style and /stylecast/mix: crossfade ``sessions`` to the mix of
+        (name, weight) ``pairs``, checked against the live model's styles."""
+        model = self.worker.restyler
+        weights, label = style_mix(model, pairs)
+        for s in sessions:
+            s.set_style(weights, label, own=model.weights)
 
     def _control_error(self, message: str) -> None:
         # Counted always, logged rarely: a sender repeating a bad command, or a flood of
@@ -395,7 +408,7 @@ class Daemon:
 
     def status_lines(self) -> list[str]:
         snap = self.snapshot()
-        return [status_line(p, snap["daemon"]["style"]) for p in snap["performers"]]
+        return [status_line(p, p.get("style") or snap["daemon"]["style"]) for p in snap["performers"]]
 
     def close(self) -> None:
         """Stop threads, close sockets, finish recordings (valid BVH). Safe to call twice."""

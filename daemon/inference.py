@@ -9,6 +9,9 @@ If the worker has fallen behind, the jobs waiting for it are merged into one big
 batch: catching up costs one call, not several.
 
 A restyler is any object with ``restyle_words(words (B, 60, J, 4)) -> same shape``.
+An item may carry a fourth element, a style mix (S,) for that word (None: the model's
+own); a batch with any mix in it is ONE call ``restyle_words(words, weights (B, S))``
+of a multi-style model, whatever mix each performer uses.
 A call that raises, returns the wrong shape, or returns non-finite or zero-length
 quaternions is a *fault*: the affected words are simply never delivered, so the seam
 blender treats them as late and fades that stretch to pass-through; the fault is
@@ -83,7 +86,7 @@ class InferenceWorker:
                 self._job_ticks.popleft()
                 self._pending -= 1
                 self.stale_words += len(stale)
-                self._failed.extend((s, end) for s, end, _ in stale)
+                self._failed.extend((s, end) for s, end, *_ in stale)
             self._cond.notify_all()
 
     def collect(self) -> tuple[list, list]:
@@ -126,12 +129,20 @@ class InferenceWorker:
                     self._pending -= merged
                     self._cond.notify_all()
 
+    @staticmethod
+    def _call(restyler, items: list, words: np.ndarray):
+        mixes = [item[3] if len(item) > 3 else None for item in items]
+        if all(m is None for m in mixes):
+            return restyler.restyle_words(words)
+        own = restyler.weights  # a multi-style model's own mix, for rows that chose none
+        return restyler.restyle_words(words, np.stack([own if m is None else m for m in mixes]))
+
     def _process(self, items: list) -> None:
-        words = np.stack([w for _, _, w in items])
+        words = np.stack([item[2] for item in items])
         restyler = self._restyler
         t0 = time.perf_counter()
         try:
-            out = np.asarray(restyler.restyle_words(words), dtype=np.float64)
+            out = np.asarray(self._call(restyler, items, words), dtype=np.float64)
             if out.shape != words.shape:
                 raise ValueError(f"restyler returned shape {out.shape} for words of shape {words.shape}")
             norms = np.linalg.norm(out, axis=-1)
@@ -152,7 +163,7 @@ class InferenceWorker:
             if self.faults in (1, 10, 100) or self.faults % 1000 == 0:
                 log.warning("restyler fault #%d (%s): %d word(s) fall back to pass-through",
                             self.faults, self.last_fault, int((~ok).sum()))
-        for (s, end, _), good, i in zip(items, ok, range(len(items))):
+        for (s, end, *_), good, i in zip(items, ok, range(len(items))):
             if good:
                 self._results.append((s, end, out[i]))
             else:

@@ -86,3 +86,24 @@ def with_direction(restyler, direction: str):
     if callable(maker):
         return maker(direction)  # the model's own check refuses unknown directions
     raise UserError(f"model {model_name(restyler)} has no directions to choose from; load a trained model")
+
+
+def with_style(restyler, text: str):
+    """``serve --style NAME`` or a mix "NAME:W,NAME:W": the model's own style from then on
+    (a pair model takes one of its two styles); refused with one sentence."""
+    maker = getattr(restyler, "with_style", None)
+    if callable(maker):
+        return maker(text)  # the model's own check names its styles
+    raise UserError(f"model {model_name(restyler)} has no styles to choose from; load the multistyle model "
+                    f"(--model multistyle)")
+
+
+def style_mix(restyler, pairs) -> tuple:
+    """(weights, label) of a live style change for ``restyler``'s style codes."""
+    if not callable(getattr(restyler, "with_mix", None)):
+        raise UserError(f"model {model_name(restyler)} has no style codes to mix; load the multistyle model "
+                        f"(/stylecast/model multistyle)")
+    from stylecast.models.styles import describe_mix, mix_from_pairs
+
+    weights = mix_from_pairs(pairs, restyler.styles)
+    return weights, describe_mix(weights, restyler.styles)

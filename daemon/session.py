@@ -76,6 +76,14 @@ class Session:
         self.last_output: OutputFrame | None = None
         self.intensity = 1.0
         self.bypass = False
+        # Style mix of a multi-style model (None: the model's own). A change moves the mix
+        # from where it is to the new one over the crossfade, frame by frame; each word is
+        # restyled with the mix of the frame that completed it, so the style turns
+        # gradually word by word and the seam blender joins the words (no jump).
+        self._style_from: np.ndarray | None = None
+        self._style_to: np.ndarray | None = None
+        self._style_progress = 1.0
+        self.style_label = ""
         self._resume_end = 0  # words ending before this were never cut for the model
         # counters
         self.frames_out = 0
@@ -144,11 +152,37 @@ class Session:
         self.feet.push(root, rotations)
         if not held:
             self.frames_in += 1
+        if self._style_progress < 1.0:
+            p = self._style_progress + 1.0 / self.settings.crossfade_frames
+            self._style_progress = 1.0 if p > 1.0 - 1e-9 else p  # sums of 1/n fall short of 1 by rounding
         out = self.cutter.push(rotations)
         if out is None or self.bypass:
             return []
         self.words += 1
         return [out]
+
+    def set_style(self, weights: np.ndarray | None, label: str = "", own: np.ndarray | None = None) -> None:
+        """Crossfade to the style mix ``weights`` from the mix in use (``own``: the model's,
+        when this performer has not chosen one). None: back to the model's own, at once
+        (a model without style codes was loaded)."""
+        if weights is None:
+            self._style_from = self._style_to = None
+            self._style_progress, self.style_label = 1.0, ""
+            return
+        current = self.style_weights()
+        if current is None:
+            current = np.asarray(weights if own is None else own, np.float64)
+        self._style_from = current
+        self._style_to = np.asarray(weights, np.float64)
+        self._style_progress = 0.0
+        self.style_label = label
+
+    def style_weights(self) -> np.ndarray | None:
+        """The mix words are restyled with now (None: the model's own)."""
+        if self._style_to is None:
+            return None
+        p = self._style_progress
+        return self._style_to if p >= 1.0 else (1.0 - p) * self._style_from + p * self._style_to
 
     def set_delay(self, delay: int) -> None:
         """A longer delay (the engine's slack planner): output holds until it is reached."""
@@ -235,6 +269,7 @@ class Session:
             "dropped": self.dropped, "lost": self.lost,
             "words": self.words, "words_failed": self.words_failed,
             "intensity": self.intensity, "bypass": self.bypass, "mix": round(self.blender.mix, 3),
+            "style": self.style_label,
             "latency_p50_ms": self.latency.percentile(50) * 1e3,
             "latency_p99_ms": self.latency.percentile(99) * 1e3,
             **{f"source_{k}": v for k, v in self.source.counters().items()},

@@ -46,7 +46,8 @@ def status_messages(snapshot: dict) -> list[tuple[str, tuple]]:
                               output ticks, i inference faults, i control refusals
     /stylecast/status/performer  s name, i frames in, i frames out, f p50 ms, f p99 ms,
                               i late, i held, i skipped, i failed words, f intensity, i bypass,
-                              i lost (1 when no input for a second)
+                              i lost (1 when no input for a second), s style mix ("" = the
+                              model's own)
     """
     d = snapshot["daemon"]
     out = [("/stylecast/status/daemon", (str(d["style"]), str(d["model"]), int(d["performers"]),
@@ -57,5 +58,5 @@ def status_messages(snapshot: dict) -> list[tuple[str, tuple]]:
             str(p["performer"]), int(p["frames_in"]), int(p["frames_out"]),
             float(p["latency_p50_ms"]), float(p["latency_p99_ms"]), int(p["late"]), int(p["held"]),
             int(p["skipped"]), int(p["words_failed"]), float(p["intensity"]), int(bool(p["bypass"])),
-            int(bool(p.get("lost"))))))
+            int(bool(p.get("lost"))), str(p.get("style", "")))))
     return out

@@ -7,6 +7,7 @@ offline restyling and evaluation. Torch is imported only where networks run.
     out = r.restyle_words(words)   # (B, 60, 22, 4) humanoid local quaternions xyzw
 """
 
-from .restyler import Restyler
+from .restyler import MODEL_KINDS, Restyler
+from .restyler_multistyle import MultiStyleRestyler  # registers the kind "multistyle"
 
-__all__ = ["Restyler"]
+__all__ = ["MODEL_KINDS", "MultiStyleRestyler", "Restyler"]

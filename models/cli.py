@@ -27,10 +27,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--style-b", default="exhausted", help="style B (default exhausted)")
     p.add_argument("--loss", choices=("cycle-diff", "coherence"), default="cycle-diff",
                    help="cycle-diff: the paper's temporal-difference loss; coherence: the Adult2Child baseline")
-    p.add_argument("--epochs", type=_positive_int, default=90)
+    p.add_argument("--styles", choices=("pair", "all"), default="pair",
+                   help="pair: a CycleGAN between --style-a and --style-b (default); all: one multi-style model "
+                        "for every dataset-2 style, the style a learned code (AdaIN)")
+    p.add_argument("--epochs", type=_positive_int, help="default 90 (pair), 80 (all)")
     p.add_argument("--batch-size", type=_positive_int, default=32)
-    p.add_argument("--words-per-epoch", type=_positive_int, default=1024,
-                   help="words of each style drawn per epoch (default 1024)")
+    p.add_argument("--words-per-epoch", type=_positive_int,
+                   help="words drawn per epoch: of each style for a pair (default 1024), of all styles "
+                        "together for --styles all (default 2048)")
+    p.add_argument("--lambda-identity", type=float, default=0.0,
+                   help="--styles all: weight of |G(x, own style) - x| (default 0 = off)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--representation", choices=("euler", "6d"), default="euler")
     p.add_argument("--knots", type=int,
@@ -56,6 +62,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", type=Path, required=True)
     p.add_argument("--model", default=None, help="checkpoint path or shipped name (default normal2exhausted)")
     p.add_argument("--direction", choices=("a2b", "b2a"), default="a2b")
+    p.add_argument("--style", help="target style, or a mix NAME:W,NAME:W (e.g. elderly:0.5,youthful:0.5), for "
+                                   "--model multistyle; a pair model takes one of its two styles")
     p.add_argument("--intensity", type=_unit, default=1.0, help="0 = input, 1 = fully restyled")
     p.add_argument("--hop", type=_positive_int,
                    help="frames between words (1..60; 60 = no overlap); default: as `serve`")
@@ -72,6 +80,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                                      "timing, seams, against the input and the baselines")
     p.add_argument("--model", default=None, help="model under test (default normal2exhausted)")
     p.add_argument("--direction", choices=("a2b", "b2a"), default="a2b")
+    p.add_argument("--target", action="append", metavar="STYLE",
+                   help="target style to measure (repeat for several, or 'all': every style but the source); "
+                        "default: the model's target (a multistyle model needs it)")
+    p.add_argument("--source", metavar="STYLE",
+                   help="style of the held-out clips to restyle (default: the model's source; normal for a "
+                        "multistyle model, which takes any)")
     p.add_argument("--variant", action="append", default=[], metavar="NAME=PATH",
                    help="another model to measure beside it (repeat)")
     p.add_argument("--out", type=Path, required=True, help="report folder (report.md, plots, metrics.json)")
@@ -91,6 +105,33 @@ def _threads(n):
         torch.set_num_threads(n)
 
 
+def _given(**options) -> dict:
+    """The options given on the command line (None = not given: the config's default)."""
+    return {k: v for k, v in options.items() if v is not None}
+
+
+def run_train_multistyle(args) -> int:
+    from stylecast.motion.errors import UserError
+
+    from .multistyle import MultiStyleConfig
+    from .train_multistyle import MultiStyleTrainConfig, load_all_styles, train_multistyle
+
+    if args.resume:
+        raise UserError("--resume is not available for --styles all yet; start the run again in a new --out folder")
+    if not args.lambda_identity >= 0:
+        raise UserError(f"--lambda-identity must be 0 or more, got {args.lambda_identity:g}")
+    try:
+        net = MultiStyleConfig() if args.knots is None else MultiStyleConfig(correction_knots=args.knots)
+    except ValueError as exc:
+        raise UserError(f"--knots: {exc}") from None
+    cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
+                                max_words=args.max_words, lambda_identity=args.lambda_identity, network=net,
+                                **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch))
+    train, val = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
+    train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress)
+    return 0
+
+
 def run_train(args) -> int:
     from .device import pick_device
     from .networks import NetworkConfig
@@ -98,8 +139,11 @@ def run_train(args) -> int:
 
     _threads(args.threads)
     pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
-    cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss, epochs=args.epochs,
-                      batch_size=args.batch_size, words_per_epoch=args.words_per_epoch, seed=args.seed,
+    if args.styles == "all":
+        return run_train_multistyle(args)
+    cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
+                      **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
+                      batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
                       lambda_overlap=args.lambda_overlap)
     from stylecast.motion.errors import UserError
@@ -131,9 +175,9 @@ def run_restyle(args) -> int:
 
     info = restyle_file(args.input, args.output, model=args.model, direction=args.direction,
                         intensity=args.intensity, hop=args.hop or DEFAULT_HOP, fps=args.fps, map_file=args.map,
-                        live=args.live, device=args.device)
+                        live=args.live, device=args.device, style=args.style)
     print(f"wrote {args.output}: {info['joints']} joints, {info['frames']} frames at {info['fps']:g} fps "
-          f"({info['model']}, {info['direction']}: {info['from']} -> {info['to']})")
+          f"({info['model']}{', ' + info['direction'] if info['direction'] else ''}: {info['from']} -> {info['to']})")
     return 0
 
 
@@ -153,6 +197,7 @@ def run_eval(args) -> int:
         variants[name] = path
     _threads(args.threads)
     path = evaluate(args.model, args.out, variants, max_files=args.max_files, hop=args.hop or DEFAULT_HOP,
-                    data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction)
+                    data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction,
+                    targets=args.target, source=args.source)
     print(f"wrote {path}")
     return 0

@@ -117,24 +117,35 @@ def bandai_skeleton(files: list):
     return Retarget.for_clip(clip).to_humanoid(clip).skeleton
 
 
-def _optional_model(name: str, direction: str, log) -> Restyler | None:
+def _optional_model(name: str, log) -> Restyler | None:
     try:
-        return Restyler.load(name, direction)
+        return Restyler.load(name)
     except UserError as exc:
         log(f"skipping {name}: {exc}")
         return None
 
 
-def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRestyler, log) -> list[Variant]:
+def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRestyler, log,
+                   source: str | None = None) -> list[Variant]:
+    source = source or proposed.eval_source
     out = [Variant("input", None, "the input itself"),
            Variant("posture", posture.restyle_words, "mean pose difference of the styles added to the input")]
     for name, note in ((SHIPPED_V1, "first shipped model (free full-rate correction, no foot lock in training)"),
                        (BASELINE, "Adult2Child temporal-coherence baseline")):
-        r = _optional_model(name, proposed.direction, log)
+        r = _optional_model(name, log)  # shipped pair models, beside a pair model of the same styles
         if r is not None and r.styles == proposed.styles and r.path != proposed.path:
-            out.append(Variant(name, r.restyle_words, note))
+            out.append(Variant(name, r.for_target(proposed.target_style).restyle_words, note))
     for name, path in extra.items():
-        out.append(Variant(name, Restyler.load(path, proposed.direction).restyle_words, f"`{path}`"))
+        try:
+            other = Restyler.load(path).for_target(proposed.target_style)
+        except UserError as exc:  # a pair model beside a multi-style one: only its own target
+            log(f"skipping {name} for {proposed.target_style}: {exc}")
+            continue
+        if not other.accepts_source(source):
+            log(f"skipping {name}: it restyles {other.source_style} input, not {source}")
+            continue
+        out.append(Variant(name, other.restyle_words, f"`{path}` ({other.name}, {other.source_style} -> "
+                                                      f"{other.target_style})"))
     out.append(Variant("proposed-unlocked", proposed.restyle_words, "the model under test without the foot lock",
                        lock_feet=False))
     out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
@@ -189,14 +200,38 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
 
 def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str] | None = None,
              max_files: int | None = None, hop: int = DEFAULT_HOP, data_dir=None, cache_dir=None,
-             seed: int = 0, direction: str = "a2b", log=print) -> Path:
+             seed: int = 0, direction: str = "a2b", log=print, targets: list[str] | None = None,
+             source: str | None = None) -> Path:
+    """Evaluate ``model`` towards each of ``targets`` (default: the model's own target; a
+    multi-style model needs them named). One target: the report in ``out``; several: one
+    folder per target under ``out`` and ``out/summary.md`` beside them. The judges are
+    trained once and shared. ``source``: the style of the held-out clips restyled (default
+    the model's source; normal for a multi-style model, which takes any)."""
     import torch
 
+    from .styles import STYLES, check_style
+
+    for t in [*(targets or []), *([source] if source else [])]:
+        if t != "all":
+            check_style(t)  # one sentence naming the known styles, before minutes of loading
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    proposed = Restyler.load(model, direction)
-    source, target = proposed.source_style, proposed.target_style
+    loaded = Restyler.load(model, direction)
+    source = source or loaded.eval_source
+    if not loaded.accepts_source(source):
+        raise UserError(f"model {loaded.name} restyles from {loaded.eval_source} in this direction, not from {source}; "
+                        f"drop --source or use --direction")
+    if targets == ["all"]:
+        targets = [s for s in STYLES if s != source]
+    targets = list(targets or ([loaded.default_target] if loaded.default_target else []))
+    if not targets:
+        raise UserError(f"model {loaded.name} can restyle towards any style; name one or more with --target "
+                        f"({', '.join(s for s in STYLES if s != source)})")
+    if source in targets:
+        raise UserError(f"--target {source} is the style the evaluation restyles from; choose another "
+                        f"target")
+    proposed = {t: loaded.for_target(t) for t in targets}  # a pair model refuses a style it lacks, here
     files = D.list_files(data_dir)
     styles, actions = D.styles_present(files), D.actions_present(files)
     skeleton = bandai_skeleton(files)
@@ -204,8 +239,6 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
     torch.manual_seed(seed)
     per_style = None if max_files is None else 6 * max_files
     judges = Judges(styles, actions, seed).fit(training_motions(files, styles, per_style, cache_dir), skeleton, log)
-    target_k = styles.index(target)
-
     held = {s: D.load_motions(D.files_for_style(files, s, "val")[:max_files], cache_dir) for s in styles}
     real = {s: [judge_windows(m.rotations, m.root_positions, skeleton) for m in held[s]] for s in styles}
     # The judges on real held-out windows of every style: how far they can be trusted.
@@ -215,6 +248,25 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
         judge_check[s] = {"windows": int(len(w)), "style_accuracy": float(np.mean(judges.style.predict(w) == k)),
                           "action_accuracy": float(np.mean(judges.action.predict(w) == np.concatenate(
                               [np.full(len(x), actions.index(m.file.action)) for x, m in zip(real[s], held[s])])))}
+    shared = dict(source=source, files=files, styles=styles, actions=actions, skeleton=skeleton, judges=judges, held=held,
+                  real=real, judge_check=judge_check, per_style=per_style, cache_dir=cache_dir, hop=hop, log=log)
+    space = _style_space_plot(out, loaded, judges, real, styles)
+    if len(targets) == 1:
+        return _evaluate_target(proposed[targets[0]], out, variants or {}, t0, extra_plots=space, **shared)
+    summary = {}
+    for t in targets:
+        report = _evaluate_target(proposed[t], out / t, variants or {}, time.perf_counter(), **shared)
+        summary[t] = json.loads((report.parent / "metrics.json").read_text())
+    from .report import write_summary
+
+    return write_summary(out / "summary.md", str(loaded.path), summary, space, time.perf_counter() - t0)
+
+
+def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *, source, files, styles, actions, skeleton,
+                     judges, held, real, judge_check, per_style, cache_dir, hop, log, extra_plots=()) -> Path:
+    out.mkdir(parents=True, exist_ok=True)
+    target = proposed.target_style
+    target_k = styles.index(target)
     real_target = np.concatenate(real[target])
     target_train = training_motions(files, [target], per_style, cache_dir)
     train_windows = np.concatenate([judge_windows(m.rotations, m.root_positions, skeleton) for m in target_train])
@@ -237,7 +289,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
     posture = PostureRestyler.from_data(source, target, files, cache_dir, per_style)
     results: dict = {}
     outputs_for_plot: dict = {}
-    for variant in build_variants(proposed, variants or {}, posture, log):
+    for variant in build_variants(proposed, variants, posture, log, source):
         for setting, live, skip in SETTINGS:
             per_clip, preds, acts, feats, ds, masks = [], [], [], [], [], []
             for m in clips:
@@ -289,7 +341,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
                "held_out_files": {s: len(held[s]) for s in styles}, "judges": judge_check,
                "fmd_floor": fmd_floor, "real_target_jerk_ratio": real_jerk, "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0}
-    plots = _plots(out, clips, outputs_for_plot, skeleton)
+    plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     from .report import write_report
 
@@ -327,3 +379,53 @@ def _plots(out: Path, clips, outputs: dict, skeleton) -> list[str]:
     fig.savefig(out / "fig_hand_foot.png", dpi=90)
     plt.close(fig)
     return ["fig_hand_foot.png"]
+
+
+def pca_2d(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of ``x`` projected on their first two principal axes, and the share of the
+    variance each axis carries."""
+    c = np.asarray(x, np.float64) - np.mean(x, axis=0)
+    _, sv, vt = np.linalg.svd(c, full_matrices=False)
+    var = sv ** 2 / max(np.sum(sv ** 2), 1e-12)
+    return c @ vt[:2].T, var[:2]
+
+
+def _style_space_plot(out: Path, model, judges, real: dict, styles: list[str], per_style: int = 200) -> list[str]:
+    """The style space as a PNG: the model's style codes (when it has them) and the style
+    judge's pooled features of real held-out windows, each in its own 2-D PCA."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    codes = getattr(model, "style_codes", None)  # multi-style models only
+    fig, axes = plt.subplots(1, 2 if codes else 1, figsize=(11 if codes else 6, 5), squeeze=False)
+    axes = axes[0]
+    colours = plt.get_cmap("tab10")
+    emb, lab = [], []
+    for k, s in enumerate(styles):
+        w = np.concatenate(real[s])
+        pick = np.linspace(0, len(w) - 1, min(per_style, len(w))).astype(int)
+        emb.append(judges.style.embed(w[pick]))
+        lab.append(np.full(len(pick), k))
+    xy, var = pca_2d(np.concatenate(emb))
+    lab = np.concatenate(lab)
+    ax = axes[-1]
+    for k, s in enumerate(styles):
+        ax.scatter(*xy[lab == k].T, s=6, alpha=0.5, color=colours(k), label=s)
+    ax.set_title(f"real held-out windows, style judge's features\n(PCA: {100 * var[0]:.0f} % + {100 * var[1]:.0f} % of the variance)",
+                 fontsize=9)
+    ax.legend(fontsize=7, markerscale=2)
+    if codes:
+        table = codes()
+        cxy, cvar = pca_2d(table)
+        names = list(model.styles)
+        for k, s in enumerate(names):
+            axes[0].scatter(*cxy[k], s=60, color=colours(styles.index(s) if s in styles else k))
+            axes[0].annotate(s, cxy[k], fontsize=8, xytext=(4, 4), textcoords="offset points")
+        axes[0].set_title(f"{model.name}: the {len(names)} style codes\n(PCA: {100 * cvar[0]:.0f} % + "
+                          f"{100 * cvar[1]:.0f} % of the variance)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out / "fig_style_space.png", dpi=90)
+    plt.close(fig)
+    return ["fig_style_space.png"]

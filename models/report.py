@@ -114,3 +114,47 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
     lines += ["", f"Evaluation took {m['seconds']:.0f} s. Raw numbers: `metrics.json`.", ""]
     path.write_text("\n".join(lines))
     return path
+
+
+BAR = ("judged_target", "action_kept", "jerk_all", "slide_ratio")  # the issue's bar for every style
+
+
+def summary_rows(per_target: dict, variants: tuple[str, ...] = ("proposed",)) -> list[dict]:
+    """One row per (target, variant) of the stream setting: the goal values and which are met."""
+    rows = []
+    for target, m in per_target.items():
+        for name in variants:
+            if name not in m["results"]:
+                continue
+            o = m["results"][name]["stream"]["overall"]
+            rows.append({"target": target, "variant": name, "fmd_floor": m["fmd_floor"],
+                         **goal_values(o, m["fmd_floor"]), "met": goals_met(o, m["fmd_floor"])})
+    return rows
+
+
+def write_summary(path: Path, model: str, per_target: dict, plots: list[str], seconds: float) -> Path:
+    """``summary.md``: the model under test towards every target, on one table, and any
+    other model measured beside it (a ``--variant``) on the same held-out clips."""
+    standard = {"input", "posture", "proposed", "proposed-unlocked", "proposed-unsmoothed"}
+    others = sorted({n for m in per_target.values() for n in m["results"]} - standard)
+    first = next(iter(per_target.values()))
+    lines = [f"# stylecast evaluation: {first['source']} -> each style", "",
+             f"Model under test: `{model}`. Each target's full report is in its folder (`TARGET/report.md`). "
+             f"Held-out {first['source']} clips restyled through the stream code (hop {first['hop']}, seam blender, "
+             "correction low-pass, foot lock), `stream` setting. The bar (issue 11, for every target): judged as "
+             "the target >= 90 %, action kept >= 93 %, jerk ratio <= 1.10, planted-foot slide <= 1.5x the input's.",
+             "", "| target | model | judged as target | action kept | jerk ratio | slide ratio | timing sync | "
+             "seam / input's | FMD / floor (floor) | bar met |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in summary_rows(per_target, ("proposed", *others)):
+        short = [k for k in BAR if not r["met"][k]]
+        lines.append(f"| {r['target']} | {r['variant']} | {_pct(r['judged_target'])} | {_pct(r['action_kept'])} | "
+                     f"{_num(r['jerk_all'], 2)} | {_num(r['slide_ratio'], 2)} | {_num(r['timing_sync'], 3)} | "
+                     f"{_num(r['seam_ratio_relative'], 3)} | {_num(r['fmd_ratio'], 1)} ({_num(r['fmd_floor'], 1)}) | "
+                     f"{'yes' if not short else 'no: ' + ', '.join(short)} |")
+    lines += ["", "Input (nothing done) on the same clips, judged as each target: "
+              + ", ".join(f"{t} {_pct(m['results']['input']['stream']['overall']['judged_target'])}"
+                          for t, m in per_target.items()) + ".", ""]
+    lines += [f"![{p}]({p})" for p in plots]
+    lines += ["", f"Evaluation took {seconds:.0f} s.", ""]
+    path.write_text("\n".join(lines))
+    return path

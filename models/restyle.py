@@ -133,15 +133,23 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
 
 def restyle_file(input_path, output_path, model=None, direction: str = "a2b", intensity: float = 1.0,
                  hop: int = DEFAULT_HOP, fps: float | None = None, map_file=None, restyler=None, live: bool = False,
-                 device: str = "cpu") -> dict:
+                 device: str = "cpu", style: str | None = None) -> dict:
+    """``style``: a style name or mix ("elderly", "elderly:0.5,youthful:0.5"), checked before
+    anything is read; a pair model takes one of its two styles (the direction follows)."""
     from stylecast.motion.bvh import read_bvh, write_bvh
     from stylecast.motion.humanoid import load_user_map
 
     from .restyler import Restyler
 
+    from .styles import parse_mix
+
     if fps is not None and not fps > 0:
         raise UserError(f"--fps must be positive, got {fps:g}")
+    if style is not None:
+        parse_mix(style)  # unknown names are refused before the model and the clip are read
     restyler = restyler or Restyler.load(model, direction, device)
+    if style is not None:
+        restyler = restyler.with_style(style)
     user_map = load_user_map(map_file) if map_file else None
     clip = read_bvh(Path(input_path))
     out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live)

@@ -47,83 +47,33 @@ class Restyler:
 
     # -- loading --------------------------------------------------------------------------
     @classmethod
-    def load(cls, path_or_name=None, direction: str = "a2b", device: str = "cpu") -> "Restyler":
-        """``device``: "cpu", "cuda", "cuda:N" or "auto" (CUDA when present); a CUDA
-        device asked for on a machine without one is refused in one sentence."""
-        from .networks import CycleGAN, NetworkConfig
-
+    def load(cls, path_or_name=None, direction: str = "a2b", device: str = "cpu"):
+        """Any kind of stylecast model (``MODEL_KINDS``, by the checkpoint's ``kind``; a
+        pair CycleGAN when it names none). ``device``: "cpu", "cuda", "cuda:N" or "auto"
+        (CUDA when present); a CUDA device asked for on a machine without one is refused
+        in one sentence. ``direction`` applies to pair models only."""
         device = pick_device(device)
         path = ckpt.resolve(path_or_name)
-        tensors, meta = ckpt.read_checkpoint(path)
-        ckpt.validate_metadata(path, meta, HUMANOID_BONES, WORD_LENGTH, FPS)
-        version = meta.get("retarget_version", 1)
-        if version != RETARGET_VERSION:
-            raise UserError(f"checkpoint {path} was trained on humanoid rotations of retarget version {version}, "
-                            f"this stylecast maps motion with version {RETARGET_VERSION}; retrain the model "
-                            f"(`stylecast train`)")
-        rep_meta = meta["representation"]
-        name = rep_meta.get("name") if isinstance(rep_meta, dict) else None
-        if name not in R.REPRESENTATIONS:
-            raise UserError(f"checkpoint {path} uses the representation {name!r}, which this stylecast does not "
-                            f"know ({', '.join(R.REPRESENTATIONS)}); use a matching stylecast")
-        reference = rep_meta.get("reference")
-        if reference is not None:
-            try:
-                reference = np.asarray(reference, dtype=np.float64)
-            except (TypeError, ValueError):
-                reference = np.zeros(0)  # refused just below
-            if reference.shape != (len(HUMANOID_BONES), 4) or not np.allclose(np.linalg.norm(reference, axis=1), 1,
-                                                                                atol=1e-6):
-                raise UserError(f"checkpoint {path} has a malformed reference pose (want {len(HUMANOID_BONES)} unit "
-                                f"quaternions); export it again with `stylecast train`")
-        rep = R.get_representation(name, reference)
-        if name == "euler" and (rep_meta.get("euler_order") != R.EULER_ORDER or
-                                rep_meta.get("normalisation") != rep.metadata()["normalisation"]):
-            raise UserError(f"checkpoint {path} uses Euler order {rep_meta.get('euler_order')} with normalisation "
-                            f"{rep_meta.get('normalisation')}, this stylecast uses {R.EULER_ORDER} scaled by "
-                            f"1/{R.EULER_SCALE_DEG:g} after centring; retrain the model")
-        cfg = cls._network_config(path, meta)
-        if cfg.channels != rep.channels or cfg.joints != len(HUMANOID_BONES):
-            raise UserError(f"checkpoint {path} declares {cfg.joints} bones x {cfg.channels} channels, but its "
-                            f"representation needs {len(HUMANOID_BONES)} x {rep.channels}; export it again")
-        # Shapes are checked on a network built on torch's "meta" device, which allocates
-        # nothing: settings claiming a huge network are refused before any memory is used.
-        import torch
+        tensors, meta, rep = read_model(path)
+        kind = meta.get("kind", PAIR_KIND)
+        maker = MODEL_KINDS.get(kind) if isinstance(kind, str) else None
+        if maker is None:
+            raise UserError(f"checkpoint {path} is a model of kind {kind!r}, which this stylecast does not know "
+                            f"({', '.join(MODEL_KINDS)}); use a matching stylecast")
+        return maker.from_checkpoint(path, tensors, meta, rep, device, direction=direction)
 
-        try:
-            with torch.device("meta"):
-                outline = CycleGAN(cfg, rep.combine)
-        except (RuntimeError, ValueError) as exc:  # sizes no network could have
-            raise UserError(f"checkpoint {path} describes an impossible network ({ckpt.short_reason(exc)}); "
-                            f"export it again with `stylecast train`") from None
-        state = ckpt.check_shapes(path, outline, tensors, ("G_a2b.", "G_b2a."))
-        model = CycleGAN(cfg, rep.combine)
-        model.load_state_dict(state, strict=False)  # discriminators are optional in a checkpoint
+    @classmethod
+    def from_checkpoint(cls, path, tensors, meta, rep, device, direction: str = "a2b", **_) -> "Restyler":
+        from .networks import CycleGAN, NetworkConfig
+
+        styles = meta["styles"]
+        if not (isinstance(styles, dict) and {"a", "b"} <= set(styles)):
+            raise UserError(f"checkpoint {path} does not name its styles a and b; export it again with "
+                            f"`stylecast train`")
+        cfg = network_config(path, meta, NetworkConfig)
+        model = build_checked(path, tensors, rep, cfg, lambda: CycleGAN(cfg, rep.combine), ("G_a2b.", "G_b2a."))
         model.to(device)
         return cls(model, rep, meta, direction, path)
-
-    @staticmethod
-    def _network_config(path, meta: dict):
-        from .networks import NetworkConfig
-
-        settings = meta["network"]
-        if isinstance(settings, dict) and "correction_knots" not in settings:
-            # Checkpoints from before the smooth correction existed: a free full-rate one.
-            settings = {**settings, "correction_knots": 0}
-        fields = NetworkConfig.__dataclass_fields__
-        if not isinstance(settings, dict) or set(settings) - set(fields):
-            raise UserError(f"checkpoint {path} has network settings this stylecast does not understand; use a "
-                            f"matching stylecast or retrain")
-        for key, value in settings.items():
-            kind = fields[key].type
-            smallest = 0 if key in NetworkConfig.MAY_BE_ZERO else 1
-            ok = (isinstance(value, int) and not isinstance(value, bool) and smallest <= value <= MAX_NETWORK_SIZE) \
-                if kind in (int, "int") \
-                else (isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value))
-            if not ok:
-                raise UserError(f"checkpoint {path} has a malformed network setting {key}={value!r}; export it "
-                                f"again with `stylecast train`")
-        return NetworkConfig(**settings)
 
     # -- facts ----------------------------------------------------------------------------
     @property
@@ -142,8 +92,40 @@ class Restyler:
     def name(self) -> str:
         return self.path.stem if self.path else "model"
 
+    @property
+    def eval_source(self) -> str:
+        """The style ``stylecast eval`` restyles from: the model's source."""
+        return self.source_style
+
+    def accepts_source(self, style: str) -> bool:
+        """Whether this restyler is meant for input of ``style``."""
+        return style == self.source_style
+
+    @property
+    def default_target(self) -> str | None:
+        """The style ``stylecast eval`` measures when none is named."""
+        return self.target_style
+
     def with_direction(self, direction: str) -> "Restyler":
         return Restyler(self.model, self.rep, self.metadata, direction, self.path)
+
+    def for_target(self, style: str) -> "Restyler":
+        """The direction that ends in ``style``; one sentence when the pair has no such one."""
+        for direction in ("a2b", "b2a"):
+            candidate = self.with_direction(direction)
+            if candidate.target_style == style:
+                return candidate
+        raise UserError(f"model {self.name} restyles between {self.styles['a']} and {self.styles['b']} only, not "
+                        f"towards {style!r}; choose one of those or the multistyle model")
+
+    def with_style(self, text: str) -> "Restyler":
+        """``--style``: a pair model can only go to one of its two styles, never a mix."""
+        from .styles import STYLES, parse_mix
+
+        weights = parse_mix(text)
+        if np.count_nonzero(weights) != 1:
+            raise UserError(f"model {self.name} cannot mix styles ({text!r}); use the multistyle model for a mix")
+        return self.for_target(STYLES[int(np.argmax(weights))])
 
     # -- inference ------------------------------------------------------------------------
     def generator(self, direction: str | None = None):
@@ -211,6 +193,100 @@ class Restyler:
         return out * sign
 
     __call__ = restyle_words
+
+
+PAIR_KIND = "cyclegan"
+# Model kinds by the checkpoint's "kind": the one place a kind is known (each registers
+# itself with ``register_kind``; ``stylecast.models`` imports every kind's module).
+MODEL_KINDS: dict[str, type] = {PAIR_KIND: Restyler}
+
+
+def register_kind(name: str):
+    def register(cls):
+        MODEL_KINDS[name] = cls
+        return cls
+    return register
+
+
+def read_model(path: Path):
+    """(tensors, metadata, representation) of a checkpoint, everything but the network
+    checked: integrity, bones, word length, fps, retarget version, representation."""
+    tensors, meta = ckpt.read_checkpoint(path)
+    ckpt.validate_metadata(path, meta, HUMANOID_BONES, WORD_LENGTH, FPS)
+    version = meta.get("retarget_version", 1)
+    if version != RETARGET_VERSION:
+        raise UserError(f"checkpoint {path} was trained on humanoid rotations of retarget version {version}, "
+                        f"this stylecast maps motion with version {RETARGET_VERSION}; retrain the model "
+                        f"(`stylecast train`)")
+    rep_meta = meta["representation"]
+    name = rep_meta.get("name") if isinstance(rep_meta, dict) else None
+    if name not in R.REPRESENTATIONS:
+        raise UserError(f"checkpoint {path} uses the representation {name!r}, which this stylecast does not "
+                        f"know ({', '.join(R.REPRESENTATIONS)}); use a matching stylecast")
+    reference = rep_meta.get("reference")
+    if reference is not None:
+        try:
+            reference = np.asarray(reference, dtype=np.float64)
+        except (TypeError, ValueError):
+            reference = np.zeros(0)  # refused just below
+        if reference.shape != (len(HUMANOID_BONES), 4) or not np.allclose(np.linalg.norm(reference, axis=1), 1,
+                                                                            atol=1e-6):
+            raise UserError(f"checkpoint {path} has a malformed reference pose (want {len(HUMANOID_BONES)} unit "
+                            f"quaternions); export it again with `stylecast train`")
+    rep = R.get_representation(name, reference)
+    if name == "euler" and (rep_meta.get("euler_order") != R.EULER_ORDER or
+                            rep_meta.get("normalisation") != rep.metadata()["normalisation"]):
+        raise UserError(f"checkpoint {path} uses Euler order {rep_meta.get('euler_order')} with normalisation "
+                        f"{rep_meta.get('normalisation')}, this stylecast uses {R.EULER_ORDER} scaled by "
+                        f"1/{R.EULER_SCALE_DEG:g} after centring; retrain the model")
+    return tensors, meta, rep
+
+
+def network_config(path, meta: dict, config_cls):
+    """The checkpoint's network settings as ``config_cls``, every value type- and size-checked."""
+    settings = meta["network"]
+    if isinstance(settings, dict) and "correction_knots" not in settings:
+        # Checkpoints from before the smooth correction existed: a free full-rate one.
+        settings = {**settings, "correction_knots": 0}
+    fields = config_cls.__dataclass_fields__
+    if not isinstance(settings, dict) or set(settings) - set(fields):
+        raise UserError(f"checkpoint {path} has network settings this stylecast does not understand; use a "
+                        f"matching stylecast or retrain")
+    for key, value in settings.items():
+        kind = fields[key].type
+        smallest = 0 if key in config_cls.MAY_BE_ZERO else 1
+        ok = (isinstance(value, int) and not isinstance(value, bool) and smallest <= value <= MAX_NETWORK_SIZE) \
+            if kind in (int, "int") \
+            else (isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value))
+        if not ok:
+            raise UserError(f"checkpoint {path} has a malformed network setting {key}={value!r}; export it "
+                            f"again with `stylecast train`")
+    try:
+        return config_cls(**settings)
+    except ValueError as exc:
+        raise UserError(f"checkpoint {path} has impossible network settings ({ckpt.short_reason(exc)}); export "
+                        f"it again with `stylecast train`") from None
+
+
+def build_checked(path, tensors, rep, cfg, make, prefixes: tuple[str, ...]):
+    """The network ``make()`` with the checkpoint's weights under ``prefixes``, after checking
+    sizes and shapes on an outline built on torch's "meta" device, which allocates nothing:
+    settings claiming a huge network are refused before any memory is used."""
+    import torch
+
+    if cfg.channels != rep.channels or cfg.joints != len(HUMANOID_BONES):
+        raise UserError(f"checkpoint {path} declares {cfg.joints} bones x {cfg.channels} channels, but its "
+                        f"representation needs {len(HUMANOID_BONES)} x {rep.channels}; export it again")
+    try:
+        with torch.device("meta"):
+            outline = make()
+    except (RuntimeError, ValueError) as exc:  # sizes no network could have
+        raise UserError(f"checkpoint {path} describes an impossible network ({ckpt.short_reason(exc)}); "
+                        f"export it again with `stylecast train`") from None
+    state = ckpt.check_shapes(path, outline, tensors, prefixes)
+    model = make()
+    model.load_state_dict(state, strict=False)  # discriminators are optional in a checkpoint
+    return model
 
 
 def _check_words_shape(shape: tuple) -> None:

@@ -76,7 +76,7 @@ def overlay_lines(performers: list[Performer], now: float, fps: float, listening
         if status is not None and p.role == "restyled" and p.slot < len(status.performers):
             s = status.performers[p.slot]
             text += f"  restyle p50 {s.p50_ms:.0f} p99 {s.p99_ms:.0f} ms  " + (
-                "bypass" if s.bypass else f"intensity {s.intensity:.2f}")
+                "bypass" if s.bypass else f"intensity {s.intensity:.2f}") + (f"  style {s.style}" if s.style else "")
         lines.append((text, colour))
     if any(ignored.values()):
         detail = ", ".join(f"{n} {reason}" for reason, n in sorted(ignored.items()) if n)

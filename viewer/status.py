@@ -6,7 +6,9 @@ reply the daemon's control port gives any allowed sender (loopback by default):
     -> /stylecast/status
     <- /stylecast/status/daemon     s style, s model, i performers, i ticks, i dropped, i faults, i refused
     <- /stylecast/status/performer  s name, i in, i out, f p50 ms, f p99 ms, i late, i held, i skipped,
-                                    i failed words, f intensity, i bypass       (one per performer, in order)
+                                    i failed words, f intensity, i bypass, i lost, s style mix
+                                    (one per performer, in order; daemons before the style mix
+                                    send no such argument)
 
 Spoken as OSC, never by importing the daemon. The poller asks once a second; a daemon
 that is not there costs one tiny datagram a second and the overlay shows nothing of it.
@@ -35,6 +37,7 @@ class PerformerStatus:
     p99_ms: float
     intensity: float
     bypass: bool
+    style: str = ""  # the performer's style mix on a multi-style model ("" = the model's own)
 
 
 @dataclass(frozen=True)
@@ -54,7 +57,8 @@ def parse_status(messages, previous: DaemonStatus | None = None) -> DaemonStatus
         elif address == "/stylecast/status/performer" and status is not None and tags[:11] == "siiffiiiifi":
             p50, p99, intensity = args[3], args[4], args[9]
             if all(math.isfinite(v) for v in (p50, p99, intensity)):
-                perf = PerformerStatus(args[0][:40], p50, p99, intensity, bool(args[10]))
+                style = args[12][:60] if tags[11:13] == "is" else ""
+                perf = PerformerStatus(args[0][:40], p50, p99, intensity, bool(args[10]), style)
                 status = DaemonStatus(status.style, status.model, (*status.performers, perf)[:64])
     return status
 

@@ -1,0 +1,150 @@
+"""``MultiStyleRestyler``: the multi-style model (``multistyle.py``) as a batch function.
+
+    r = Restyler.load("multistyle")               # kind "multistyle": this class
+    r = r.with_style("elderly:0.5,youthful:0.5")  # or r.for_target("elderly"), r.with_mix(w)
+    out = r.restyle_words(words)                  # every word towards the restyler's mix
+    out = r.restyle_words(words, weights)         # (B, 7): one mix per word, one call
+
+The input may be in any style: the generator is told only the target. Everything around
+the generator (heading, representation, hemisphere, one batched call under no_grad) is
+the pair restyler's (``restyler.Restyler``).
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from stylecast.motion.errors import UserError
+
+from .restyler import Restyler, build_checked, network_config, register_kind
+from .styles import NEUTRAL, STYLES, describe_mix, one_hot, parse_mix
+
+KIND = "multistyle"
+
+
+@register_kind(KIND)
+class MultiStyleRestyler(Restyler):
+    direction = ""  # no directions: a style (mix) instead
+
+    def __init__(self, model, rep, metadata: dict, weights=None, path=None, intensity: float = 1.0):
+        self.model = model.eval()
+        self.rep = rep
+        self.metadata = metadata
+        self.path = path
+        self.device = next(self.model.parameters()).device
+        self._trep = None
+        self.style_names = tuple(metadata["styles"])
+        self.weights = one_hot(NEUTRAL, self.style_names) if weights is None else np.asarray(weights, np.float64)
+        self.intensity = float(intensity)
+
+    @classmethod
+    def from_checkpoint(cls, path, tensors, meta, rep, device, **_) -> "MultiStyleRestyler":
+        from .multistyle import MultiStyleConfig, MultiStyleGenerator
+
+        styles = meta["styles"]
+        if not (isinstance(styles, list) and tuple(styles) == STYLES):
+            raise UserError(f"checkpoint {path} names the styles {styles!r}, this stylecast's multi-style models "
+                            f"have {', '.join(STYLES)}; export it again with `stylecast train --styles all`")
+        cfg = network_config(path, meta, MultiStyleConfig)
+        if cfg.num_styles != len(STYLES):
+            raise UserError(f"checkpoint {path} has {cfg.num_styles} style codes for {len(STYLES)} styles; export "
+                            f"it again with `stylecast train --styles all`")
+        model = build_checked(path, {k[2:]: v for k, v in tensors.items() if k.startswith("G.")}, rep, cfg,
+                              lambda: MultiStyleGenerator(cfg, rep.combine), ("",))
+        model.to(device)
+        return cls(model, rep, meta, path=path)
+
+    # -- facts ----------------------------------------------------------------------------
+    @property
+    def styles(self) -> list[str]:
+        return list(self.style_names)
+
+    @property
+    def source_style(self) -> str:
+        return "any"
+
+    @property
+    def eval_source(self) -> str:
+        return NEUTRAL  # the issue's bar is read from normal input
+
+    def accepts_source(self, style: str) -> bool:
+        return True  # only the target is given to the generator: any input style
+
+    @property
+    def default_target(self) -> None:
+        return None  # any style: ``stylecast eval`` needs --target
+
+    @property
+    def target_style(self) -> str:
+        return describe_mix(self.weights, self.style_names)
+
+    def style_codes(self) -> np.ndarray:
+        """The code table (S, code_dim)."""
+        return self.model.codes.table.detach().cpu().numpy()
+
+    # -- choosing the style -----------------------------------------------------------------
+    def with_mix(self, weights, intensity: float | None = None) -> "MultiStyleRestyler":
+        """The same model (shared, not copied) with another mix."""
+        w = np.asarray(weights, np.float64)
+        if w.shape != (len(self.style_names),) or not (np.all(np.isfinite(w)) and np.all(w >= 0) and w.sum() > 0):
+            raise UserError(f"a style mix needs {len(self.style_names)} finite weights >= 0 with a positive sum, "
+                            f"got {w.tolist()}")
+        other = copy.copy(self)
+        other.weights = w / w.sum()
+        other.intensity = self.intensity if intensity is None else float(intensity)
+        return other
+
+    def with_style(self, text: str) -> "MultiStyleRestyler":
+        return self.with_mix(parse_mix(text, self.style_names))
+
+    def for_target(self, style: str) -> "MultiStyleRestyler":
+        return self.with_mix(one_hot(style, self.style_names))
+
+    def with_direction(self, direction: str):
+        raise UserError(f"model {self.name} has no directions; choose its style instead (--style NAME, "
+                        f"/stylecast/style NAME)")
+
+    # -- inference ------------------------------------------------------------------------
+    def generator(self, direction=None):
+        """The generator conditioned on this restyler's mix: a module of x (B, F, T) alone,
+        as the pair's ``generator()`` (benchmarks time it)."""
+        from torch import nn
+
+        model, weights = self.model, self.weights
+
+        class Conditioned(nn.Module):
+            def __init__(self):
+                super().__init__()
+                self.net = model
+
+            def forward(self, x):
+                w = x.new_tensor(weights).expand(x.shape[0], -1)
+                return self.net(x, w)
+
+        return Conditioned()
+
+    def restyle_words(self, words, weights=None):
+        """Words (B, 60, 22, 4) -> restyled, one batched call; ``weights`` (B, S) gives each
+        word its own mix (default: the restyler's mix for all)."""
+        return super().restyle_words(words, weights)
+
+    __call__ = restyle_words
+
+    def _generate(self, features, weights):
+        import torch
+
+        from .networks import from_channels, to_channels
+
+        b = features.shape[0]
+        if weights is None:
+            w = torch.as_tensor(self.weights, dtype=torch.float32, device=self.device).expand(b, -1)
+        else:
+            w = torch.as_tensor(np.asarray(weights, np.float32), device=self.device)
+            if tuple(w.shape) != (b, len(self.style_names)):
+                raise ValueError(f"style weights must have shape ({b}, {len(self.style_names)}), got {tuple(w.shape)}")
+        intensity = torch.full((b,), self.intensity, dtype=torch.float32, device=self.device)
+        with torch.no_grad():
+            y = self.model(to_channels(features.contiguous()), w, intensity)
+        return from_channels(y, features.shape[2])

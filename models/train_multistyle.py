@@ -1,0 +1,275 @@
+"""Training the multi-style restyler (``stylecast train --styles all``).
+
+The pair recipe (``train.py``: LSGAN, Adam lr 2e-4 betas (0.5, 0.999), the paper's
+cycle-consistency temporal-difference loss with lambda_cycle 20 and lambda_diff 0.01),
+generalised to any pair of styles as in StarGAN: each training word x of style s is sent
+to a target t != s drawn at random, G(x, t), and back to its own style, G(G(x, t), s);
+L_cycle and L_diff are taken on that cycle. The adversarial term asks the discriminator's
+head t to take G(x, t) for real; the discriminator learns real words of style s on head s
+and generated ones on the head of their target. An identity term
+(lambda_identity |G(x, s) - x|) is optional (default off).
+
+One epoch = ``words_per_epoch`` words, an equal share from every style, drawn without
+replacement with a generator seeded by (seed, epoch); targets come from the same
+generator. Deterministic on the CPU for a seed.
+
+Files written to the output folder: ``checkpoint.safetensors`` (generator and
+discriminator, rewritten every epoch), ``losses.csv`` (one row per epoch),
+``model.safetensors``/``.json`` (the generator only: the shippable model),
+``config.json``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from stylecast.motion.errors import UserError
+from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
+
+from . import checkpoint as ckpt
+from . import data as D
+from . import losses as L
+from .device import Determinism, pick_device
+from .multistyle import MultiStyleConfig, MultiStyleGAN
+from .networks import count_parameters, to_channels
+from .representation import get_representation
+from .styles import STYLES
+from .train import TrainConfig
+
+KIND = "multistyle"
+FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "G_total",
+          "val_cycle", "val_diff")
+
+
+@dataclass
+class MultiStyleTrainConfig(TrainConfig):
+    """The pair's settings (``style_a``/``style_b`` unused) plus the identity weight.
+    Defaults sized to the 15-minute one-thread CPU budget (see MODEL_CARD.md)."""
+
+    epochs: int = 80
+    words_per_epoch: int = 2048
+    lambda_identity: float = 0.0
+    network: MultiStyleConfig = field(default_factory=MultiStyleConfig)
+
+    def to_dict(self) -> dict:
+        d = super().to_dict()
+        for unused in ("style_a", "style_b", "loss", "lambda_coherence", "lambda_gram", "lambda_overlap"):
+            d.pop(unused)
+        return d
+
+
+def build_multistyle(cfg, reference=None):
+    """(model, representation) for a TrainConfig whose ``network`` is a MultiStyleConfig."""
+    rep = get_representation(cfg.representation, reference)
+    net = cfg.network if isinstance(cfg.network, MultiStyleConfig) else MultiStyleConfig(**cfg.network.to_dict())
+    net = replace(net, channels=rep.channels, joints=len(HUMANOID_BONES))
+    cfg.network = net
+    return MultiStyleGAN(net, rep.combine), rep
+
+
+def multistyle_metadata(cfg, rep, model: MultiStyleGAN, extra: dict | None = None) -> dict:
+    meta = {
+        "kind": KIND,
+        "styles": list(STYLES),
+        "style_codes": model.G.codes.table.detach().cpu().numpy().round(6).tolist(),
+        "bones": list(HUMANOID_BONES),
+        "representation": rep.metadata(),
+        "normalisation": rep.metadata()["normalisation"],
+        "heading": "removed per word (Hips yaw at the centre frame), restored after the generator",
+        "fps": D.FPS,
+        "word_length": D.WORD_LENGTH,
+        "retarget_version": RETARGET_VERSION,
+        "network": cfg.network.to_dict(),
+        "loss": "cycle-diff, any pair (x -> target -> own style)",
+        "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "identity": cfg.lambda_identity},
+        "training": {k: v for k, v in cfg.to_dict().items() if k != "network"},
+        "training_data": f"{D.DATA_NAME}: all {len(STYLES)} styles ({', '.join(STYLES)}), training split by "
+                         f"file (SHA-1 of file name, {int(D.VAL_FRACTION * 100)}% held out)",
+        "licence": f"{D.DATA_LICENCE}: trained on the {D.DATA_NAME} (Kobayashi et al., arXiv:2306.08861); "
+                   f"the weights may only be used non-commercially",
+        "git_revision": ckpt.git_revision(),
+    }
+    meta.update(extra or {})
+    return meta
+
+
+class MultiStyleTrainer:
+    """``words``: {style: heading-free quaternion words (N, 60, J, 4)} for every style."""
+
+    def __init__(self, cfg, words: dict, val: dict | None = None, device: str = "auto"):
+        import torch
+
+        missing = [s for s in STYLES if len(words.get(s, ())) == 0]
+        if missing:
+            raise UserError(f"no training words for the style(s) {', '.join(missing)}; check the data folder")
+        self.cfg = cfg
+        self.device = pick_device(device)
+        torch.manual_seed(cfg.seed)
+        self.determinism = Determinism(self.device)
+        self.model, self.rep = build_multistyle(cfg)
+        self.model.to(self.device)
+        self.opt_g = torch.optim.Adam(self.model.generators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
+        self.opt_d = torch.optim.Adam(self.model.discriminators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
+        self.words = [torch.from_numpy(self._encode(words[s])) for s in STYLES]
+        self.val = None
+        if val and all(len(val.get(s, ())) for s in STYLES):
+            per = max(1, cfg.val_words // len(STYLES))
+            self.val = [(k, torch.from_numpy(self._encode(val[s][:per]))) for k, s in enumerate(STYLES)]
+        self.epoch = 0
+        self.eye = torch.eye(len(STYLES), device=self.device)
+
+    def _encode(self, words: np.ndarray) -> np.ndarray:
+        out = np.empty((*words.shape[:3], self.rep.channels), np.float32)
+        for i in range(0, len(words), 2048):
+            out[i:i + 2048] = self.rep.encode(words[i:i + 2048])
+        return out
+
+    def step(self, x, src, tgt) -> dict[str, float]:
+        m, cfg = self.model, self.cfg
+        for p in m.discriminators():
+            p.requires_grad_(False)
+        fake = m.G(x, self.eye[tgt])
+        rec = m.G(fake, self.eye[src])
+        adv = L.generator_loss(m.D(fake, tgt))
+        cyc = L.cycle_loss(rec, x)
+        dif = L.diff_loss(rec, x)
+        total = adv + cfg.lambda_cycle * cyc + cfg.lambda_diff * dif
+        ident = 0.0
+        if cfg.lambda_identity > 0:
+            idl = L.cycle_loss(m.G(x, self.eye[src]), x)
+            total = total + cfg.lambda_identity * idl
+            ident = idl.item()
+        self.opt_g.zero_grad(set_to_none=True)
+        total.backward()
+        self.opt_g.step()
+        for p in m.discriminators():
+            p.requires_grad_(True)
+        d = L.discriminator_loss(m.D(x, src), m.D(fake.detach(), tgt))
+        self.opt_d.zero_grad(set_to_none=True)
+        d.backward()
+        self.opt_d.step()
+        return {"G_adv": adv.item(), "D": d.item(), "cycle": cyc.item(), "diff": dif.item(), "identity": ident,
+                "G_total": total.item()}
+
+    def epoch_plan(self, rng: np.random.Generator) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Batches of (style, word index, target) for one epoch, equal shares per style."""
+        cfg, S = self.cfg, len(STYLES)
+        share = max(1, cfg.words_per_epoch // S)
+        styles, index = [], []
+        for k, w in enumerate(self.words):
+            reps = -(-share // len(w))
+            index.append(np.concatenate([rng.permutation(len(w)) for _ in range(reps)])[:share])
+            styles.append(np.full(share, k))
+        styles, index = np.concatenate(styles), np.concatenate(index)
+        order = rng.permutation(len(styles))
+        styles, index = styles[order], index[order]
+        target = (styles + rng.integers(1, S, size=len(styles))) % S  # uniform over the other styles
+        b = cfg.batch_size
+        return [(styles[i:i + b], index[i:i + b], target[i:i + b]) for i in range(0, len(styles), b)]
+
+    def run_epoch(self, progress=None) -> dict[str, float]:
+        import torch
+
+        self.model.train()
+        rng = np.random.default_rng((self.cfg.seed, self.epoch))
+        sums: dict[str, float] = {}
+        plan = self.epoch_plan(rng)
+        for src, idx, tgt in plan:
+            x = torch.stack([self.words[s][i] for s, i in zip(src, idx)])
+            with self.determinism.watch():
+                out = self.step(to_channels(x).to(self.device), torch.from_numpy(src).to(self.device),
+                                torch.from_numpy(tgt).to(self.device))
+            for k, v in out.items():
+                sums[k] = sums.get(k, 0.0) + v
+            if progress is not None:
+                progress.update(1)
+        self.epoch += 1
+        return {k: v / len(plan) for k, v in sums.items()}
+
+    def validate(self) -> dict[str, float]:
+        """Cycle through the next style and back, on held-out words of every style."""
+        import torch
+
+        if self.val is None:
+            return {}
+        self.model.eval()
+        cyc, dif = [], []
+        with torch.no_grad():
+            for k, words in self.val:
+                x = to_channels(words).to(self.device)
+                src = torch.full((len(x),), k, device=self.device)
+                fake = self.model.G(x, self.eye[(src + 1) % len(STYLES)])
+                rec = self.model.G(fake, self.eye[src])
+                cyc.append(L.cycle_loss(rec, x).item())
+                dif.append(L.diff_loss(rec, x).item())
+        return {"val_cycle": float(np.mean(cyc)), "val_diff": float(np.mean(dif))}
+
+    def save(self, path: Path, generator_only: bool, extra: dict) -> None:
+        sd = self.model.state_dict()
+        if generator_only:
+            sd = {k: v for k, v in sd.items() if k.startswith("G.")}
+        ckpt.save_checkpoint(path, sd, multistyle_metadata(self.cfg, self.rep, self.model, extra))
+
+
+def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, device: str = "auto",
+                     progress: bool = True, log=print) -> MultiStyleTrainer:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    trainer = MultiStyleTrainer(cfg, words, val, device)
+    trainer.determinism.log = log
+    steps = len(trainer.epoch_plan(np.random.default_rng(0)))
+    log(f"training all {len(STYLES)} styles in one model on {trainer.device}: "
+        + ", ".join(f"{s} {len(w)}" for s, w in zip(STYLES, trainer.words))
+        + f" training words, {cfg.words_per_epoch} per epoch, generator {count_parameters(trainer.model.G)} parameters")
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=steps * cfg.epochs, unit="step", dynamic_ncols=True)
+    rows, spent, cpu = [], 0.0, 0.0
+    while trainer.epoch < cfg.epochs:
+        t0, c0 = time.perf_counter(), time.process_time()
+        row = trainer.run_epoch(bar)
+        row.update(trainer.validate())
+        row["epoch"] = trainer.epoch
+        row["seconds"] = time.perf_counter() - t0
+        row["cpu_seconds"] = time.process_time() - c0  # the machine is shared: CPU time is the fair cost
+        spent += row["seconds"]
+        cpu += row["cpu_seconds"]
+        rows.append(row)
+        with open(out / "losses.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=FIELDS, extrasaction="ignore")
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+        trainer.save(out / "checkpoint.safetensors", False, {"epochs_completed": trainer.epoch})
+        if bar is None:
+            log(f"epoch {trainer.epoch}/{cfg.epochs} " + " ".join(f"{k}={row[k]:.4g}" for k in FIELDS[1:] if k in row))
+    if bar is not None:
+        bar.close()
+    final = {"train_seconds": spent, "train_cpu_seconds": cpu, "epochs": trainer.epoch,
+             **{k: v for k, v in (rows[-1] if rows else {}).items() if k.startswith("val_")}}
+    trainer.save(out / "model.safetensors", True, {"epochs_completed": trainer.epoch, "metrics": final})
+    (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
+    log(f"done: {trainer.epoch} epochs in {spent / 60:.1f} min ({cpu / 60:.1f} CPU min); model at "
+        f"{out / 'model.safetensors'}")
+    return trainer
+
+
+def load_all_styles(cfg, data_dir=None, cache_dir=None, progress: bool = True, log=print) -> tuple[dict, dict]:
+    """({style: training words}, {style: validation words}), heading-free quaternions."""
+    t0 = time.perf_counter()
+    train, val = {}, {}
+    per_val = max(1, cfg.val_words // len(STYLES))
+    for s in STYLES:
+        train[s] = D.load_wordset(s, "train", data_dir, cache_dir, cfg.hop, cfg.max_words, progress).words
+        cap = per_val if cfg.max_words is None else min(per_val, cfg.max_words)
+        val[s] = D.load_wordset(s, "val", data_dir, cache_dir, cfg.hop, cap, progress).words
+    log(f"loaded words in {time.perf_counter() - t0:.1f} s: " + ", ".join(f"{s} {len(train[s])}" for s in STYLES))
+    return train, val

@@ -1,0 +1,255 @@
+"""The multi-style model: G(x, s) with style codes through AdaIN, its training, its
+checkpoint kind, style mixes and the --style option (tiny networks, synthetic words; the
+CLI runs use a few words of the shared Bandai data and are skipped without it)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from stylecast.cli import main
+from stylecast.models import checkpoint as ckpt
+from stylecast.models.multistyle import MultiStyleConfig, MultiStyleGenerator, StyleDiscriminator
+from stylecast.models.representation import get_representation
+from stylecast.models.restyler import Restyler
+from stylecast.models.restyler_multistyle import MultiStyleRestyler
+from stylecast.models.styles import STYLES, describe_mix, one_hot, parse_mix
+from stylecast.models.train_multistyle import MultiStyleTrainConfig, MultiStyleTrainer, train_multistyle
+from stylecast.motion.errors import UserError
+from tests.test_models import synthetic_words
+
+TINY = MultiStyleConfig(g_hidden=16, g_blocks=1, d_hidden=8, code_dim=4)
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai"
+CLIP = SHARED / "dataset-2" / "data" / "dataset-2_walk_normal_001.bvh.gz"
+needs_data = pytest.mark.skipif(not CLIP.exists(), reason=f"the shared Bandai data is not at {SHARED}")
+S = len(STYLES)
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+def _generator(seed: int = 0, trained_like: bool = True) -> MultiStyleGenerator:
+    """A tiny generator; ``trained_like``: its zero-initialised parts given random values, so
+    the style code changes the output (as after training)."""
+    torch.manual_seed(seed)
+    rep = get_representation("euler")
+    g = MultiStyleGenerator(TINY, rep.combine)
+    if trained_like:
+        with torch.no_grad():
+            for p in g.parameters():
+                p.add_(torch.randn_like(p) * 0.05)
+    return g.eval()
+
+
+def _x(n: int = 3, seed: int = 0) -> torch.Tensor:
+    rep = get_representation("euler")
+    f = rep.encode(synthetic_words(n, seed)).astype(np.float32)  # (B, 60, J, 3)
+    return torch.from_numpy(f).reshape(n, 60, -1).transpose(1, 2).contiguous()
+
+
+def _tiny_words(n: int = 24) -> dict:
+    return {s: synthetic_words(n, 10 + k, amplitude=0.2 + 0.05 * k) for k, s in enumerate(STYLES)}
+
+
+def _tiny_cfg(**kw) -> MultiStyleTrainConfig:
+    return MultiStyleTrainConfig(**{"epochs": 1, "words_per_epoch": 28, "batch_size": 7, "network": TINY, **kw})
+
+
+# --- the network ------------------------------------------------------------------------------
+
+def test_shapes_of_generator_and_discriminator():
+    g, x = _generator(), _x(3)
+    w = torch.from_numpy(np.stack([one_hot(s) for s in ("elderly", "youthful", "active")])).float()
+    assert g(x, w).shape == x.shape
+    d = StyleDiscriminator(TINY)
+    out = d(x, torch.tensor([0, 3, 6]))
+    assert out.shape == (3, 1, 15)
+    # Each word is scored by the head of its own style: channel k of the shared trunk.
+    v = torch.diff(x, dim=2, prepend=x[:, :, :1]) * TINY.d_velocity_scale
+    heads = d.net(torch.cat([x, v], dim=1))
+    assert torch.equal(out[:, 0], torch.stack([heads[0, 0], heads[1, 3], heads[2, 6]]))
+
+
+def test_a_fresh_generator_is_the_identity_for_every_style_and_mix():
+    g, x = _generator(trained_like=False), _x(4)
+    for w in (one_hot("elderly"), parse_mix("active:0.3,feminine:0.7")):
+        y = g(x, torch.from_numpy(np.tile(w, (4, 1))).float())
+        assert torch.allclose(y, x, atol=1e-6)
+
+
+def test_one_hot_mix_is_that_style_and_a_half_mix_lies_between():
+    g, x = _generator(), _x(2)
+    e = torch.from_numpy(np.tile(one_hot("elderly"), (2, 1))).float()
+    y = torch.from_numpy(np.tile(one_hot("youthful"), (2, 1))).float()
+    via_mix = torch.from_numpy(np.tile(parse_mix("elderly:1,youthful:0"), (2, 1))).float()
+    assert torch.equal(g(x, via_mix), g(x, e))
+    assert not torch.allclose(g(x, e), g(x, y), atol=1e-4)  # the code matters
+    # The mixed code is the mean of the two codes.
+    half = torch.from_numpy(np.tile(parse_mix("elderly:0.5,youthful:0.5"), (2, 1))).float()
+    table = g.codes.table
+    assert torch.allclose(g.codes(half)[0], (table[1] + table[6]) / 2, atol=1e-6)
+
+
+def test_intensity_scales_the_correction():
+    g, x = _generator(), _x(2)
+    w = torch.from_numpy(np.tile(one_hot("elderly"), (2, 1))).float()
+    assert torch.allclose(g(x, w, torch.zeros(2)), x, atol=1e-6)
+    assert torch.allclose(g(x, w, torch.ones(2)), g(x, w), atol=1e-6)
+    half = g(x, w, torch.full((2,), 0.5))
+    assert not torch.allclose(half, x, atol=1e-4) and not torch.allclose(half, g(x, w), atol=1e-4)
+
+
+def test_per_word_styles_in_one_batch_equal_separate_calls():
+    g, x = _generator(), _x(3)
+    mixes = [one_hot("elderly"), one_hot("youthful"), parse_mix("active:0.5,normal:0.5")]
+    together = g(x, torch.from_numpy(np.stack(mixes)).float())
+    for i, w in enumerate(mixes):
+        alone = g(x[i:i + 1], torch.from_numpy(w[None]).float())
+        assert torch.allclose(together[i:i + 1], alone, atol=1e-5)
+
+
+# --- the style names ---------------------------------------------------------------------------
+
+def test_style_mixes_parse_normalise_and_refuse_unknown_names():
+    assert np.allclose(parse_mix("elderly"), one_hot("elderly"))
+    w = parse_mix("elderly:1, youthful:3")
+    assert w[STYLES.index("elderly")] == pytest.approx(0.25) and w.sum() == pytest.approx(1)
+    assert describe_mix(w) == "youthful 0.75 + elderly 0.25"
+    for bad, words in (("sleepy", "unknown style 'sleepy'"), ("elderly:x", "not a number"),
+                       ("elderly:0", "positive weight"), ("elderly:-1", ">= 0")):
+        with pytest.raises(UserError, match=words) as e:
+            parse_mix(bad)
+        assert "\n" not in str(e.value)
+    with pytest.raises(UserError) as e:
+        parse_mix("sleepy")
+    assert all(s in str(e.value) for s in STYLES)
+
+
+# --- training ------------------------------------------------------------------------------------
+
+def _state(trainer) -> dict:
+    return {k: v.clone() for k, v in trainer.model.state_dict().items()}
+
+
+def test_training_is_deterministic_for_a_seed_and_moves_the_weights():
+    words = _tiny_words()
+    runs = []
+    for seed in (3, 3, 4):
+        t = MultiStyleTrainer(_tiny_cfg(seed=seed), words, device="cpu")
+        before = _state(t)
+        t.run_epoch()
+        runs.append((before, _state(t)))
+    (b0, a0), (_, a1), (_, a2) = runs
+    assert all(torch.equal(a0[k], a1[k]) for k in a0)  # same seed, same weights
+    assert any(not torch.equal(a0[k], a2[k]) for k in a0)  # another seed differs
+    assert not torch.equal(a0["G.head.weight"], b0["G.head.weight"])  # the head left zero: it learnt
+
+
+def test_every_style_and_every_target_is_drawn_and_no_word_targets_its_own_style():
+    t = MultiStyleTrainer(_tiny_cfg(), _tiny_words(), device="cpu")
+    plan = t.epoch_plan(np.random.default_rng(0))
+    src = np.concatenate([p[0] for p in plan])
+    tgt = np.concatenate([p[2] for p in plan])
+    assert np.all(np.bincount(src, minlength=S) == 4)  # 28 words: an equal share of 4 per style
+    assert np.all(src != tgt)
+    big = MultiStyleTrainer(_tiny_cfg(words_per_epoch=700), _tiny_words(), device="cpu")
+    tgt = np.concatenate([p[2] for p in big.epoch_plan(np.random.default_rng(1))])
+    assert set(tgt) == set(range(S))
+
+
+def test_a_trained_checkpoint_loads_as_the_multistyle_kind(tmp_path):
+    train_multistyle(_tiny_cfg(), tmp_path, _tiny_words(), _tiny_words(8), device="cpu", progress=False,
+                     log=lambda *_: None)
+    r = Restyler.load(tmp_path / "model.safetensors")
+    assert isinstance(r, MultiStyleRestyler)
+    meta = json.loads((tmp_path / "model.json").read_text())
+    assert meta["kind"] == "multistyle" and meta["styles"] == list(STYLES)
+    assert np.allclose(np.array(meta["style_codes"]), r.style_codes(), atol=1e-6)
+    words = synthetic_words(3, 7)
+    e = r.with_style("elderly")
+    assert np.allclose(e.restyle_words(words), r.for_target("elderly").restyle_words(words))
+    per_row = r.restyle_words(words, np.stack([one_hot("elderly"), one_hot("youthful"), one_hot("elderly")]))
+    assert np.allclose(per_row[0], e.restyle_words(words[:1])[0], atol=1e-6)
+    assert np.allclose(per_row[1], r.with_style("youthful").restyle_words(words[1:2])[0], atol=1e-6)
+    assert r.with_style("elderly:0.5,youthful:0.5").target_style == "elderly 0.50 + youthful 0.50"
+    with pytest.raises(UserError, match="no directions"):
+        r.with_direction("b2a")
+
+
+def test_a_multistyle_checkpoint_with_foreign_styles_or_kind_is_refused(tmp_path):
+    train_multistyle(_tiny_cfg(), tmp_path, _tiny_words(), device="cpu", progress=False, log=lambda *_: None)
+    tensors, meta = ckpt.read_checkpoint(tmp_path / "model.safetensors")
+    for change, words in (({"styles": ["normal", "sleepy"]}, "names the styles"), ({"kind": "diffusion"}, "kind")):
+        bad = ckpt.save_checkpoint(tmp_path / "bad.safetensors", tensors, {**meta, **change})
+        with pytest.raises(UserError, match=words) as e:
+            Restyler.load(bad)
+        assert "\n" not in str(e.value)
+
+
+def test_a_pair_model_takes_one_of_its_styles_and_refuses_others():
+    pair = Restyler.load("normal2exhausted")
+    assert pair.with_style("exhausted").direction == "a2b"
+    assert pair.with_style("normal").direction == "b2a"
+    with pytest.raises(UserError, match="only, not towards 'elderly'"):
+        pair.with_style("elderly")
+    with pytest.raises(UserError, match="cannot mix"):
+        pair.with_style("normal:0.5,exhausted:0.5")
+
+
+# --- the commands ------------------------------------------------------------------------------
+
+@needs_data
+def test_train_styles_all_and_restyle_with_a_style_and_a_mix(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["train", "--styles", "all", "--max-words", "8", "--epochs", "1", "--words-per-epoch", "14",
+                 "--batch-size", "7", "--threads", "1", "--out", str(run), "--no-progress"]) == 0
+    assert len((run / "losses.csv").read_text().strip().splitlines()) == 2
+    model = str(run / "model.safetensors")
+    for style, shown in (("elderly", "any -> elderly"), ("elderly:0.5,youthful:0.5", "elderly 0.50 + youthful 0.50")):
+        out = tmp_path / "out.bvh"
+        assert main(["restyle", str(CLIP), "-o", str(out), "--model", model, "--style", style, "--threads", "1"]) == 0
+        assert shown in capsys.readouterr().out and out.exists()
+
+
+def test_restyle_refuses_an_unknown_style_before_reading_anything(tmp_path, capsys):
+    # Neither the clip nor the model exists: the style is checked first.
+    code = main(["restyle", str(tmp_path / "absent.bvh"), "-o", str(tmp_path / "o.bvh"), "--model",
+                 str(tmp_path / "absent.safetensors"), "--style", "sleepy"])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown style 'sleepy'" in err and "youthful" in err and "Traceback" not in err
+
+
+def test_eval_refuses_an_unknown_target_and_needs_one_for_a_multistyle_model(tmp_path, capsys):
+    assert main(["eval", "--model", str(tmp_path / "absent.safetensors"), "--target", "sleepy",
+                 "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown style 'sleepy'" in err and "elderly" in err and "Traceback" not in err
+    train_multistyle(_tiny_cfg(), tmp_path / "m", _tiny_words(), device="cpu", progress=False, log=lambda *_: None)
+    assert main(["eval", "--model", str(tmp_path / "m" / "model.safetensors"), "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "--target" in err and "youthful" in err and "Traceback" not in err
+    assert main(["eval", "--model", "normal2exhausted", "--target", "elderly", "--out", str(tmp_path / "e")]) == 2
+    assert "not towards 'elderly'" in capsys.readouterr().err
+    assert main(["eval", "--model", "normal2exhausted", "--source", "elderly", "--out", str(tmp_path / "e")]) == 2
+    assert "not from elderly" in capsys.readouterr().err
+    assert main(["eval", "--model", "normal2exhausted", "--source", "sleepy", "--out", str(tmp_path / "e")]) == 2
+    assert "unknown style 'sleepy'" in capsys.readouterr().err
+
+
+def test_pca_projection_keeps_the_main_axis():
+    from stylecast.models.eval import pca_2d
+
+    rng = np.random.default_rng(0)
+    x = np.c_[rng.normal(size=200) * 10, rng.normal(size=200), rng.normal(size=200) * 0.1]
+    xy, var = pca_2d(x)
+    assert xy.shape == (200, 2) and var[0] > 0.95 and var[0] > var[1]
+    assert abs(np.corrcoef(xy[:, 0], x[:, 0])[0, 1]) > 0.99
