@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from .networks import NetworkConfig, _conv, linear_upsample_matrix, smooth_projection
+from .networks import NetworkConfig, _conv, linear_upsample_matrix, patch_discriminator, smooth_projection
 from .styles import STYLES
 
 
@@ -123,14 +123,8 @@ class StyleDiscriminator(nn.Module):
 
     def __init__(self, cfg: MultiStyleConfig):
         super().__init__()
-        f, h = cfg.features, cfg.d_hidden
         self.velocity_scale = cfg.d_velocity_scale
-        self.net = nn.Sequential(
-            nn.Conv1d(2 * f, h, 4, stride=2, padding=1), nn.LeakyReLU(0.2),
-            nn.Conv1d(h, 2 * h, 4, stride=2, padding=1), nn.LeakyReLU(0.2),
-            nn.Conv1d(2 * h, 2 * h, 3, padding=1), nn.LeakyReLU(0.2),
-            nn.Conv1d(2 * h, cfg.num_styles, 3, padding=1),
-        )
+        self.net = patch_discriminator(cfg, heads=cfg.num_styles)
 
     def forward(self, x: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
         v = torch.diff(x, dim=2, prepend=x[:, :, :1]) * self.velocity_scale

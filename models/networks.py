@@ -166,17 +166,23 @@ class Generator(nn.Module):
         return self.combine(x, delta)
 
 
+def patch_discriminator(cfg: NetworkConfig, heads: int = 1) -> nn.Sequential:
+    """The LSGAN patch discriminator's layers over (pose, velocity) channels, with ``heads``
+    output channels (one per style for the multi-style model)."""
+    f, h = cfg.features, cfg.d_hidden
+    return nn.Sequential(
+        nn.Conv1d(2 * f, h, 4, stride=2, padding=1), nn.LeakyReLU(0.2),
+        nn.Conv1d(h, 2 * h, 4, stride=2, padding=1), nn.LeakyReLU(0.2),
+        nn.Conv1d(2 * h, 2 * h, 3, padding=1), nn.LeakyReLU(0.2),
+        nn.Conv1d(2 * h, heads, 3, padding=1),
+    )
+
+
 class Discriminator(nn.Module):
     def __init__(self, cfg: NetworkConfig):
         super().__init__()
-        f, h = cfg.features, cfg.d_hidden
         self.velocity_scale = cfg.d_velocity_scale
-        self.net = nn.Sequential(
-            nn.Conv1d(2 * f, h, 4, stride=2, padding=1), nn.LeakyReLU(0.2),
-            nn.Conv1d(h, 2 * h, 4, stride=2, padding=1), nn.LeakyReLU(0.2),
-            nn.Conv1d(2 * h, 2 * h, 3, padding=1), nn.LeakyReLU(0.2),
-            nn.Conv1d(2 * h, 1, 3, padding=1),
-        )
+        self.net = patch_discriminator(cfg)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         v = torch.diff(x, dim=2, prepend=x[:, :, :1]) * self.velocity_scale

@@ -90,9 +90,11 @@ def build_model(cfg: TrainConfig, reference: np.ndarray | None = None):
     return CycleGAN(net, rep.combine), rep
 
 
-def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
-    meta = {
-        "styles": {"a": cfg.style_a, "b": cfg.style_b},
+def shared_metadata(cfg, rep, styles_trained: str) -> dict:
+    """What every stylecast checkpoint records, whatever its kind (``cfg`` has ``network``
+    and ``to_dict``): the conventions a loader checks, the training settings, the data and
+    its licence."""
+    return {
         "bones": list(HUMANOID_BONES),
         "representation": rep.metadata(),
         "normalisation": rep.metadata()["normalisation"],
@@ -101,15 +103,22 @@ def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
         "word_length": D.WORD_LENGTH,
         "retarget_version": RETARGET_VERSION,
         "network": cfg.network.to_dict(),
-        "loss": cfg.loss,
-        "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence,
-                    "gram": cfg.lambda_gram},
         "training": {k: v for k, v in cfg.to_dict().items() if k != "network"},
-        "training_data": f"{D.DATA_NAME}: styles {cfg.style_a} and {cfg.style_b}, training split by file "
+        "training_data": f"{D.DATA_NAME}: {styles_trained}, training split by file "
                          f"(SHA-1 of file name, {int(D.VAL_FRACTION * 100)}% held out)",
         "licence": f"{D.DATA_LICENCE}: trained on the {D.DATA_NAME} (Kobayashi et al., arXiv:2306.08861); "
                    f"the weights may only be used non-commercially",
         "git_revision": ckpt.git_revision(),
+    }
+
+
+def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
+    meta = {
+        "styles": {"a": cfg.style_a, "b": cfg.style_b},
+        **shared_metadata(cfg, rep, f"styles {cfg.style_a} and {cfg.style_b}"),
+        "loss": cfg.loss,
+        "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence,
+                    "gram": cfg.lambda_gram},
     }
     meta.update(extra or {})
     return meta
@@ -309,9 +318,21 @@ class Trainer:
         self.epoch = int(smeta["epochs_completed"])
 
 
-def _write_csv(path: Path, rows: list[dict]) -> None:
+def timed_epoch(trainer, bar=None) -> dict:
+    """One training epoch and its validation, with its wall and CPU seconds (the machine
+    is shared: CPU time is the fair cost)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    row = trainer.run_epoch(bar)
+    row.update(trainer.validate())
+    row["epoch"] = trainer.epoch
+    row["seconds"] = time.perf_counter() - t0
+    row["cpu_seconds"] = time.process_time() - c0
+    return row
+
+
+def write_csv(path: Path, rows: list[dict], fields=CSV_FIELDS) -> None:
     with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
         for r in rows:
             w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
@@ -357,18 +378,13 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
     spent = sum(float(r.get("seconds") or 0) for r in rows)
     cpu = sum(float(r.get("cpu_seconds") or 0) for r in rows)
     while trainer.epoch < cfg.epochs:
-        t0, c0 = time.perf_counter(), time.process_time()
         if bar is not None:
             bar.set_description(f"epoch {trainer.epoch + 1}/{cfg.epochs}")
-        row = trainer.run_epoch(bar)
-        row.update(trainer.validate())
-        row["epoch"] = trainer.epoch
-        row["seconds"] = time.perf_counter() - t0
-        row["cpu_seconds"] = time.process_time() - c0  # the machine is shared: CPU time is the fair cost
+        row = timed_epoch(trainer, bar)
         spent += row["seconds"]
         cpu += row["cpu_seconds"]
         rows.append(row)
-        _write_csv(out / "losses.csv", rows)
+        write_csv(out / "losses.csv", rows)
         trainer.save(out, {"train_seconds": spent, "train_cpu_seconds": cpu, **{k: v for k, v in row.items() if k.startswith("val_")}})
         if bar is None:
             log(f"epoch {trainer.epoch}/{cfg.epochs} " + " ".join(f"{k}={row[k]:.4g}" for k in CSV_FIELDS[1:] if k in row))

@@ -21,7 +21,6 @@ discriminator, rewritten every epoch), ``losses.csv`` (one row per epoch),
 
 from __future__ import annotations
 
-import csv
 import json
 import time
 from dataclasses import dataclass, field, replace
@@ -30,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from stylecast.motion.errors import UserError
-from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
+from stylecast.motion.humanoid import HUMANOID_BONES
 
 from . import checkpoint as ckpt
 from . import data as D
@@ -40,7 +39,7 @@ from .multistyle import MultiStyleConfig, MultiStyleGAN
 from .networks import count_parameters, to_channels
 from .representation import get_representation
 from .styles import STYLES
-from .train import TrainConfig
+from .train import TrainConfig, shared_metadata, timed_epoch, write_csv
 
 KIND = "multistyle"
 FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "G_total",
@@ -78,22 +77,9 @@ def multistyle_metadata(cfg, rep, model: MultiStyleGAN, extra: dict | None = Non
         "kind": KIND,
         "styles": list(STYLES),
         "style_codes": model.G.codes.table.detach().cpu().numpy().round(6).tolist(),
-        "bones": list(HUMANOID_BONES),
-        "representation": rep.metadata(),
-        "normalisation": rep.metadata()["normalisation"],
-        "heading": "removed per word (Hips yaw at the centre frame), restored after the generator",
-        "fps": D.FPS,
-        "word_length": D.WORD_LENGTH,
-        "retarget_version": RETARGET_VERSION,
-        "network": cfg.network.to_dict(),
+        **shared_metadata(cfg, rep, f"all {len(STYLES)} styles ({', '.join(STYLES)})"),
         "loss": "cycle-diff, any pair (x -> target -> own style)",
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "identity": cfg.lambda_identity},
-        "training": {k: v for k, v in cfg.to_dict().items() if k != "network"},
-        "training_data": f"{D.DATA_NAME}: all {len(STYLES)} styles ({', '.join(STYLES)}), training split by "
-                         f"file (SHA-1 of file name, {int(D.VAL_FRACTION * 100)}% held out)",
-        "licence": f"{D.DATA_LICENCE}: trained on the {D.DATA_NAME} (Kobayashi et al., arXiv:2306.08861); "
-                   f"the weights may only be used non-commercially",
-        "git_revision": ckpt.git_revision(),
     }
     meta.update(extra or {})
     return meta
@@ -234,20 +220,11 @@ def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, devic
         bar = tqdm(total=steps * cfg.epochs, unit="step", dynamic_ncols=True)
     rows, spent, cpu = [], 0.0, 0.0
     while trainer.epoch < cfg.epochs:
-        t0, c0 = time.perf_counter(), time.process_time()
-        row = trainer.run_epoch(bar)
-        row.update(trainer.validate())
-        row["epoch"] = trainer.epoch
-        row["seconds"] = time.perf_counter() - t0
-        row["cpu_seconds"] = time.process_time() - c0  # the machine is shared: CPU time is the fair cost
+        row = timed_epoch(trainer, bar)
         spent += row["seconds"]
         cpu += row["cpu_seconds"]
         rows.append(row)
-        with open(out / "losses.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=FIELDS, extrasaction="ignore")
-            w.writeheader()
-            for r in rows:
-                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+        write_csv(out / "losses.csv", rows, FIELDS)
         trainer.save(out / "checkpoint.safetensors", False, {"epochs_completed": trainer.epoch})
         if bar is None:
             log(f"epoch {trainer.epoch}/{cfg.epochs} " + " ".join(f"{k}={row[k]:.4g}" for k in FIELDS[1:] if k in row))
