@@ -21,9 +21,9 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.words import DEFAULT_HOP
 
-FPS = 60.0
 PERIOD = 1.0 / FPS
 MARGIN_FACTOR = 1.25  # headroom over the measured time: load changes, batches grow
 MARGIN_S = 0.002  # and a fixed 2 ms for the tick's own work before the collect

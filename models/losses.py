@@ -16,12 +16,13 @@ from dataclasses import dataclass
 
 import torch
 
+from stylecast.motion.clock import OUTPUT_FPS as FPS  # a word's frame rate: velocities below are per second
+
 LAMBDA_CYCLE = 20.0
 LAMBDA_DIFF = 0.01
 LAMBDA_COHERENCE = 0.001
 LAMBDA_GRAM = 0.0  # off unless asked for: the dynamics-style term is an option (seed 004)
 LOSS_KINDS = ("cycle-diff", "coherence")
-FPS = 60.0  # frames per second of a word: velocities below are per second
 
 
 def _per_word_mean(x: torch.Tensor) -> torch.Tensor:

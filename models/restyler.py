@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
 
@@ -29,7 +30,6 @@ from .device import pick_device
 MAX_NETWORK_SIZE = 1 << 16  # no width, depth or kernel of a live restyler comes near this
 
 WORD_LENGTH = 60
-FPS = 60.0
 
 
 class Restyler:

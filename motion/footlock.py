@@ -271,7 +271,8 @@ class FootLock:
         gaps = np.zeros((len(roots), 2))
         inputs = np.asarray(inputs, dtype=np.float64)
         if len(rows):
-            gaps[rows] = self._feet(roots[rows], outputs[rows])[0][..., 1] - self._feet(roots[rows], inputs[rows])[0][..., 1]
+            ankle_out, ankle_in = self._feet(roots[rows], outputs[rows])[0], self._feet(roots[rows], inputs[rows])[0]
+            gaps[rows] = ankle_out[..., 1] - ankle_in[..., 1]
         new_roots = roots.copy()
         new_roots[:, 1] -= self.pelvis.drops(gaps, w > 0)
         result = outputs
