@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from .networks import NetworkConfig, _conv, linear_upsample_matrix, patch_discriminator, smooth_projection
+from .networks import CorrectionGenerator, NetworkConfig, _conv, patch_discriminator
 from .styles import STYLES
 
 
@@ -82,40 +82,21 @@ class AdaINResBlock(nn.Module):
         return x + self.n2(self.c2(y), code)
 
 
-class MultiStyleGenerator(nn.Module):
-    def __init__(self, cfg: MultiStyleConfig, combine):
-        super().__init__()
-        f, h, k = cfg.features, cfg.g_hidden, cfg.g_kernel
-        self.combine = combine
+class MultiStyleGenerator(CorrectionGenerator):
+    def build_conditioning(self, cfg: MultiStyleConfig) -> None:
         self.codes = StyleCodes(cfg.num_styles, cfg.code_dim)
-        self.stem = _conv(f, h, k)
-        self.down = nn.Conv1d(h, h, 4, stride=2, padding=1, padding_mode="replicate")
-        self.blocks = nn.ModuleList([AdaINResBlock(h, 3, cfg.code_dim) for _ in range(cfg.g_blocks)])
-        half = (cfg.frames + 2 - 4) // 2 + 1
-        self.register_buffer("upsample", linear_upsample_matrix(half), persistent=False)
-        self.register_buffer("smooth", smooth_projection(cfg.frames, cfg.correction_knots)
-                             if cfg.correction_knots else None, persistent=False)
-        self.fuse = _conv(2 * h, h, 3)
-        self.head = nn.Conv1d(h, f, 1)
-        self.act = nn.LeakyReLU(0.2)
-        nn.init.zeros_(self.head.weight)
-        nn.init.zeros_(self.head.bias)
+
+    def build_blocks(self, cfg: MultiStyleConfig) -> nn.Module:
+        return nn.ModuleList([AdaINResBlock(cfg.g_hidden, 3, cfg.code_dim) for _ in range(cfg.g_blocks)])
 
     def forward(self, x: torch.Tensor, weights: torch.Tensor, intensity: torch.Tensor | None = None) -> torch.Tensor:
         """x (B, F, T); weights (B, S) style mix per word; intensity (B,) or None (= 1)."""
         code = self.codes(weights)
-        s = self.act(self.stem(x))
-        y = self.act(self.down(s))
+        skip, y = self.encode(x)
         for block in self.blocks:
             y = block(y, code)
-        y = y @ self.upsample
-        y = self.act(self.fuse(torch.cat([y, s], dim=1)))
-        delta = self.head(y)
-        if self.smooth is not None:
-            delta = delta @ self.smooth
-        if intensity is not None:
-            delta = delta * intensity.to(delta.dtype).reshape(-1, 1, 1)
-        return self.combine(x, delta)
+        scale = None if intensity is None else intensity.to(x.dtype).reshape(-1, 1, 1)  # x's dtype is delta's
+        return self.correct(x, skip, y, scale)
 
 
 class StyleDiscriminator(nn.Module):

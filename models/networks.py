@@ -137,14 +137,22 @@ class ResBlock(nn.Module):
         return x + self.c2(self.act(self.c1(x)))
 
 
-class Generator(nn.Module):
+class CorrectionGenerator(nn.Module):
+    """What every stylecast generator shares around its residual blocks: stem, strided
+    conv, fixed upsampling, the full-rate skip, the zero-initialised head and the B-spline
+    projection of the correction (the pair ``Generator`` and ``multistyle``'s generator
+    differ only in their blocks and what conditions them). The layers are built in one
+    fixed order (conditioning, stem, down, blocks, fuse, head), the order their weights
+    draw from torch's generator: a seed gives the shipped models again."""
+
     def __init__(self, cfg: NetworkConfig, combine):
         super().__init__()
         f, h, k = cfg.features, cfg.g_hidden, cfg.g_kernel
         self.combine = combine  # representation.combine: (x, delta) -> output
+        self.build_conditioning(cfg)
         self.stem = _conv(f, h, k)
         self.down = nn.Conv1d(h, h, 4, stride=2, padding=1, padding_mode="replicate")
-        self.blocks = nn.Sequential(*[ResBlock(h, 3) for _ in range(cfg.g_blocks)])
+        self.blocks = self.build_blocks(cfg)
         half = (cfg.frames + 2 - 4) // 2 + 1  # length after the strided conv
         self.register_buffer("upsample", linear_upsample_matrix(half), persistent=False)
         self.register_buffer("smooth", smooth_projection(cfg.frames, cfg.correction_knots)
@@ -155,15 +163,36 @@ class Generator(nn.Module):
         nn.init.zeros_(self.head.weight)
         nn.init.zeros_(self.head.bias)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def build_conditioning(self, cfg) -> None:
+        """Modules that condition the blocks (none for the pair generator)."""
+
+    def build_blocks(self, cfg) -> nn.Module:
+        raise NotImplementedError
+
+    def encode(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(B, F, T) -> the full-rate features (skip) and the half-rate ones for the blocks."""
         s = self.act(self.stem(x))
-        y = self.blocks(self.act(self.down(s)))
+        return s, self.act(self.down(s))
+
+    def correct(self, x: torch.Tensor, skip: torch.Tensor, y: torch.Tensor, scale=None) -> torch.Tensor:
+        """The blocks' output -> the smooth correction, (optionally scaled) put on x."""
         y = y @ self.upsample
-        y = self.act(self.fuse(torch.cat([y, s], dim=1)))  # skip connection at full rate
+        y = self.act(self.fuse(torch.cat([y, skip], dim=1)))  # skip connection at full rate
         delta = self.head(y)
         if self.smooth is not None:
             delta = delta @ self.smooth
+        if scale is not None:
+            delta = delta * scale
         return self.combine(x, delta)
+
+
+class Generator(CorrectionGenerator):
+    def build_blocks(self, cfg: NetworkConfig) -> nn.Module:
+        return nn.Sequential(*[ResBlock(cfg.g_hidden, 3) for _ in range(cfg.g_blocks)])
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        skip, y = self.encode(x)
+        return self.correct(x, skip, self.blocks(y))
 
 
 def patch_discriminator(cfg: NetworkConfig, heads: int = 1) -> nn.Sequential:

@@ -18,3 +18,15 @@ def bandai_root() -> Path:
     if not root.is_dir():
         pytest.skip(f"the shared Bandai data is not at {root}")
     return root
+
+
+@pytest.fixture
+def one_torch_thread():
+    """One torch thread: faster for tiny networks and fair on a shared machine. Test files
+    that build networks use it for every test (``pytestmark``)."""
+    import torch
+
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)

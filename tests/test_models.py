@@ -26,13 +26,7 @@ J = len(HUMANOID_BONES)
 TINY = NetworkConfig(g_hidden=16, g_blocks=1, d_hidden=8)
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """One torch thread: faster for these tiny networks and fair on a shared machine."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def t(x) -> torch.Tensor:

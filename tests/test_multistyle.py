@@ -29,12 +29,7 @@ needs_data = pytest.mark.skipif(not CLIP.exists(), reason=f"the shared Bandai da
 S = len(STYLES)
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def _generator(seed: int = 0, trained_like: bool = True) -> MultiStyleGenerator:
