@@ -270,9 +270,9 @@ class FootLock:
         rows = np.flatnonzero(w.max(axis=1) > 0)
         gaps = np.zeros((len(roots), 2))
         inputs = np.asarray(inputs, dtype=np.float64)
+        own = self._feet(roots, inputs)  # the input's ankles and balls: the lock's gap and the floor's ceiling
         if len(rows):
-            ankle_out, ankle_in = self._feet(roots[rows], outputs[rows])[0], self._feet(roots[rows], inputs[rows])[0]
-            gaps[rows] = ankle_out[..., 1] - ankle_in[..., 1]
+            gaps[rows] = self._feet(roots[rows], outputs[rows])[0][..., 1] - own[0][rows, :, 1]
         new_roots = roots.copy()
         new_roots[:, 1] -= self.pelvis.drops(gaps, w > 0)
         result = outputs
@@ -286,16 +286,16 @@ class FootLock:
             result[rows[:, None, None], LEG_INDEX[None]] = rot.slerp(outputs[rows][:, LEG_INDEX], target, weight)
             self.locked_frames += int(np.count_nonzero(w >= 1.0))
         floor = self._floors[np.arange(t0, t0 + len(roots)) - self._base]
-        return new_roots, self._keep_above_floor(roots, new_roots, inputs, result, floor, w < 1.0)
+        return new_roots, self._keep_above_floor(own, new_roots, result, floor, w < 1.0)
 
-    def _keep_above_floor(self, roots, new_roots, inputs, outputs, floor, free):
+    def _keep_above_floor(self, own, new_roots, outputs, floor, free):
         """A foot in the air can go through the floor the input's foot cleared: a restyled
         leg straighter than the input's, a foot pitched further down, or (most, measured
         2.7 cm at the 99th percentile on held-out clips without this step) the lowered
         pelvis. Where the ankle would go below its standing height over the floor, or the
         ball below the floor, the leg IK lifts the ankle (the foot keeps its rotation, the
         knee its plane) until both clear it, through a soft edge (``_soft_floor``), never
-        higher than the input's own foot there. Lifting the ankle rather than pitching the
+        higher than the input's own foot there (``own``: its ankles and balls). Lifting the ankle rather than pitching the
         foot up: a foot pointing down needs a large turn for a small lift (measured: an
         8-degree pop in one frame). A fully locked foot (not ``free``) is the input's own,
         above the floor by definition, and is skipped: most frames of a stream."""
@@ -308,7 +308,7 @@ class FootLock:
         if len(rows) == 0:
             return outputs
         pos, world, _ = leg_chain(new_roots[rows], outputs[rows], self.offsets)
-        own_ankle, own_ball = (p[..., 1] for p in self._feet(roots[rows], inputs[rows]))
+        own_ankle, own_ball = own[0][rows, :, 1], own[1][rows, :, 1]
         below = floor[rows, None]
         up = np.maximum(
             _soft_floor(pos[:, :, 2, 1], np.minimum(below + self._ankle_rest, own_ankle), own_ankle) - pos[:, :, 2, 1],

@@ -291,7 +291,21 @@ class _Link:
         self._next_attempt = math.inf
 
 
-class SerialTrackerSource:
+class _OnLink:
+    """What a serial source and sink both report about their ``_Link``."""
+
+    link: _Link
+
+    @property
+    def stats(self) -> LinkStats:
+        return self.link.stats
+
+    @property
+    def connected(self) -> bool:
+        return self.link.connected
+
+
+class SerialTrackerSource(_OnLink):
     """Tracker samples from a serial device, pulled with ``poll()`` (non-blocking).
 
     ``url``: ``serial:///dev/ttyUSB0?baud=921600``, a bare device path, or any pyserial URL
@@ -315,14 +329,6 @@ class SerialTrackerSource:
         """The open pyserial port, or None while disconnected."""
         self.link.ensure_open()
         return self.link.port
-
-    @property
-    def stats(self) -> LinkStats:
-        return self.link.stats
-
-    @property
-    def connected(self) -> bool:
-        return self.link.connected
 
     def poll(self, max_reads: int = 16) -> list[TrackerSample]:
         """Every sample that has arrived since the last call; [] when there is none or the
@@ -353,7 +359,7 @@ class SerialTrackerSource:
         self.close()
 
 
-class SerialTrackerSink:
+class SerialTrackerSink(_OnLink):
     """Writes framed samples to a serial device without ever blocking the caller.
 
     Bytes the device cannot take yet wait in a bounded buffer; past ``max_pending`` the
@@ -373,14 +379,6 @@ class SerialTrackerSink:
         self._pending = bytearray()
         self.packets = 0
         self.link.stats.extra["dropped_bytes"] = 0
-
-    @property
-    def stats(self) -> LinkStats:
-        return self.link.stats
-
-    @property
-    def connected(self) -> bool:
-        return self.link.connected
 
     def send(self, samples: Iterable[TrackerSample]) -> None:
         samples = list(samples)

@@ -119,17 +119,25 @@ def pack_datagrams(messages: Sequence[bytes], bundled: bool = True,
 
 # ----------------------------------------------------------------------------- decoding
 
-def _read_string(data: bytes, pos: int, end: int) -> tuple[str, int]:
+_ZEROS = {n: b"\x00" * n for n in range(1, 5)}  # the padding after a string's NUL, by length
+
+
+def _padded_string(data: bytes, pos: int, end: int) -> tuple[bytes, int]:
+    """The raw bytes of the NUL-terminated, 4-byte padded OSC string at ``pos``, and the
+    position after its padding."""
     nul = data.find(b"\x00", pos, end)
-    if nul < 0:
-        raise _Bad("truncated")
     stop = (nul & ~3) + 4
-    if stop > end:
+    if nul < 0 or stop > end:
         raise _Bad("truncated")
-    if data.count(b"\x00", nul, stop) != stop - nul:
+    if data[nul:stop] != _ZEROS[stop - nul]:
         raise _Bad("bad_padding")
+    return data[pos:nul], stop
+
+
+def _read_string(data: bytes, pos: int, end: int) -> tuple[str, int]:
+    raw, stop = _padded_string(data, pos, end)
     try:
-        return data[pos:nul].decode("utf-8"), stop
+        return raw.decode("utf-8"), stop
     except UnicodeDecodeError:
         raise _Bad("bad_string") from None
 
@@ -168,20 +176,13 @@ def _compile(raw: bytes) -> tuple[str, tuple]:
     return _plans[raw]
 
 
-_ZEROS = {n: b"\x00" * n for n in range(1, 5)}
 _addresses: dict[bytes, str] = {}  # raw address -> str: VMC repeats a handful of addresses
 
 
 def _decode_message(data: bytes, pos: int, end: int) -> Message:
-    # The address and type tags are read inline, with caches keyed by their raw bytes:
-    # this is the receive hot path (25 messages per performer per frame).
-    nul = data.find(b"\x00", pos, end)
-    stop = (nul & ~3) + 4
-    if nul < 0 or stop > end:
-        raise _Bad("truncated")
-    if data[nul:stop] != _ZEROS[stop - nul]:
-        raise _Bad("bad_padding")
-    raw = data[pos:nul]
+    # The address and type tags are looked up in caches keyed by their raw bytes: this is
+    # the receive hot path (25 messages per performer per frame).
+    raw, stop = _padded_string(data, pos, end)
     address = _addresses.get(raw)
     if address is None:
         if raw[:1] != b"/":
@@ -196,13 +197,7 @@ def _decode_message(data: bytes, pos: int, end: int) -> Message:
     pos = stop
     if pos == end:  # OSC 1.0 allows omitting the type tag string: no arguments
         return address, "", ()
-    nul = data.find(b"\x00", pos, end)
-    stop = (nul & ~3) + 4
-    if nul < 0 or stop > end:
-        raise _Bad("truncated")
-    if data[nul:stop] != _ZEROS[stop - nul]:
-        raise _Bad("bad_padding")
-    raw = data[pos:nul]
+    raw, stop = _padded_string(data, pos, end)
     compiled = _plans.get(raw)
     if compiled is None:
         compiled = _compile(raw)
