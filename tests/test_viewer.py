@@ -229,7 +229,11 @@ def test_overlay_shows_rate_latency_and_the_daemon_status(ctx):
         assert status is not None and status.style == "exhausted" and len(status.performers) == 1
         (perf,) = v.table.snapshot(t0 + 29 / 60)
         text = "\n".join(t for t, _ in overlay_lines([perf], t0 + 29 / 60, 30.0, "x", {}, "side", status))
-        assert "60.0 Hz" in text and "latency   4.0 ms" in text
+        # /VMC/Ext/T travels as a float32, so the 4 ms is read through its rounding at t0's
+        # magnitude (2 ms steps on a host up for 5 hours): expect exactly what the wire carries.
+        wire = sorted((t0 + k / 60) - float(np.float32(t0 + k / 60 - 0.004)) for k in range(30))
+        assert "60.0 Hz" in text and f"latency {wire[15] * 1e3:5.1f} ms" in text
+        assert abs(wire[15] - 0.004) <= float(np.spacing(np.float32(t0)))  # and it is the 4 ms sent
         assert "style exhausted" in text and "p50 251 p99 265 ms" in text and "intensity 0.75" in text
         v.render_offscreen()
         assert ctx.error == "GL_NO_ERROR"
