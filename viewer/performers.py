@@ -8,7 +8,10 @@ sender's clock offset plus the transport delay. stylecast's daemon stamps T with
 monotonic clock, which on the same host *is* the viewer's clock (CLOCK_MONOTONIC is
 system-wide), so a small non-negative ``recv - T`` is read as the latency itself. Any
 other offset means another clock: then only the part above the smallest offset seen is
-meaningful, and it is shown as jitter.
+meaningful, and it is shown as jitter. T is a float32 on the wire, so the figure moves in
+steps of the float32 spacing at the host's uptime (0.1 ms after 20 minutes, 2 ms after 5
+hours, 8 ms after a day): a coarse reading on a long-running host, the daemon's own status
+(restyle p50/p99) is the exact one.
 """
 
 from __future__ import annotations
