@@ -68,6 +68,9 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unbundled", dest="bundled", action="store_false", default=None,
                    help="send one OSC message per datagram (for receivers without bundle support)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--feet", default=None, metavar="input|stance",
+                   help="planted feet on the input's own ankles (input, the default) or where the restyled "
+                        "legs stand (stance: keeps a style's stance, e.g. the multistyle model's masculine)")
     p.add_argument("--workers", type=int, default=None,
                    help="worker processes to spread the performers over, each with its own model (default 1)")
     p.add_argument("--device", default=None,
@@ -76,7 +79,7 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
 
 _CONFIG_KEYS = ("source", "out", "out_input", "record", "latency", "hop", "delay", "decay", "crossfade", "intensity",
                 "bypass", "model", "direction", "style", "control", "allow", "status_interval", "bundled", "duration",
-                "device", "workers")
+                "device", "workers", "feet")
 
 
 def _config(args):

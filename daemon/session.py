@@ -33,7 +33,7 @@ import numpy as np
 
 from stylecast.motion.clip import PoseFrame
 from stylecast.motion.clock import OUTPUT_FPS
-from stylecast.motion.footlock import FootLock
+from stylecast.motion.footlock import ContactSettings, FootLock
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.smoothing import CorrectionFilter
@@ -58,7 +58,8 @@ class OutputFrame:
 
 
 class Session:
-    def __init__(self, index: int, source, settings: BlendSettings, skeleton: Skeleton, phase: int | None = None):
+    def __init__(self, index: int, source, settings: BlendSettings, skeleton: Skeleton, phase: int | None = None,
+                 contacts: ContactSettings = ContactSettings()):
         self.index = index
         self.source = source
         self.performer = source.performer
@@ -68,7 +69,7 @@ class Session:
         self.blender = SeamBlender(settings, len(skeleton), phase=self.phase)
         # Planted feet of the input stay planted in the output (after the blender, as
         # offline ``restyle`` does); it looks ahead into the ``delay`` frames buffered.
-        self.feet = FootLock.for_stream(skeleton, settings.delay)
+        self.feet = FootLock.for_stream(skeleton, settings.delay, contacts)
         self.smoothing = CorrectionFilter(len(skeleton), settings.correction_tau)
         self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
         self.frames_in = 0

@@ -72,6 +72,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="render as the live daemon does (start in pass-through and fade in, no mirrored "
                         "pre-roll): the same frames `stylecast serve` sends for this clip")
     p.add_argument("--map", type=Path, help="JSON/TOML table of source joint name -> humanoid bone")
+    p.add_argument("--feet", default="input", metavar="input|stance",
+                   help="planted feet on the input's own ankles (input, the default) or where the restyled legs "
+                        "stand (stance), as `serve --feet`")
     p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
     p.add_argument("--device", default="auto", help="where the model runs: auto (CUDA when present), cpu or cuda[:N]")
     p.set_defaults(func=run_restyle)
@@ -175,7 +178,7 @@ def run_restyle(args) -> int:
 
     info = restyle_file(args.input, args.output, model=args.model, direction=args.direction,
                         intensity=args.intensity, hop=args.hop or DEFAULT_HOP, fps=args.fps, map_file=args.map,
-                        live=args.live, device=args.device, style=args.style)
+                        live=args.live, device=args.device, style=args.style, feet=args.feet)
     print(f"wrote {args.output}: {info['joints']} joints, {info['frames']} frames at {info['fps']:g} fps "
           f"({info['model']}{', ' + info['direction'] if info['direction'] else ''}: {info['from']} -> {info['to']})")
     return 0

@@ -14,7 +14,7 @@ mean pose difference between the two styles added to the input: the cheapest pos
 "style"), the first shipped model (``normal2exhausted-v1``, the figure to beat), the
 coherence baseline, the model under test, and any ``--variant NAME=PATH``; and the model
 under test without each stage around it (the foot lock, the correction low-pass, the
-pelvis height), to show what each stage does.
+pelvis height), to show what each stage does, and with ``--feet stance``.
 
 Measures (``metrics.py`` for the arithmetic, ``judges.py`` for the classifiers), each
 overall and per action:
@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import ContactSettings
+from stylecast.motion.footlock import FEET, ContactSettings
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.words import DEFAULT_HOP
 
@@ -65,7 +65,6 @@ BASELINE = "normal2exhausted-coherence"
 # then the fade-in. The held-out takes are 2 to 9 s long (median 2.2 s), so that start-up
 # is most of a clip; the goals are read on "stream".
 SETTINGS = (("stream", False, 0), ("live-from-start", True, 0))
-FIXED_PELVIS = ContactSettings(pelvis_tau=0)
 
 
 @dataclass
@@ -75,7 +74,7 @@ class Variant:
     note: str
     lock_feet: bool = True  # the product always locks; one row shows what the lock does
     smooth: bool = True  # ...and low-passes the correction; one row shows what that does
-    pelvis: bool = True  # ...and sets the pelvis height; one row shows what that does
+    contacts: ContactSettings = FEET["input"]  # ...as --feet input, with the pelvis height; rows change each
 
 
 # --- the paper's smoothness and the seams ----------------------------------------------------
@@ -151,7 +150,11 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
     out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
                        "the model under test without the correction low-pass", smooth=False))
     out.append(Variant("proposed-fixed-pelvis", proposed.restyle_words,
-                       "the model under test with the root passed through (no pelvis height)", pelvis=False))
+                       "the model under test with the root passed through (no pelvis height)",
+                       contacts=ContactSettings(pelvis_tau=0)))
+    out.append(Variant("proposed-stance", proposed.restyle_words,
+                       "the model under test with planted feet where its legs stand (`--feet stance`)",
+                       contacts=FEET["stance"]))
     out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test)"))
     return out
 
@@ -302,7 +305,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                     lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
                     res, moved = restyle_rotations(inp, variant.restyle_words, hop, live=live,
                                                    correction_tau=None if variant.smooth else 0.0,
-                                                   contacts=None if variant.pelvis else FIXED_PELVIS, **lock)
+                                                   contacts=variant.contacts, **lock)
                     out_roots = roots if moved is None else moved  # the pelvis height the lock set
                 mask = switch_mask(len(res), hop, live)[skip:]
                 inp, res, roots, out_roots = inp[skip:], res[skip:], roots[skip:], out_roots[skip:]

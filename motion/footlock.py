@@ -18,12 +18,14 @@ Lock (``FootLock.apply``, per output frame t): the leg weight w(t) rises to 1 ov
 ``ramp`` frames before a contact and falls over ``ramp`` frames after it (a triangle
 dilation of the contacts, which looks ``ramp`` frames ahead: the daemon has ``delay``
 frames of input beyond the frame it renders, so ``ramp`` <= delay). Where w > 0 the
-hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle and
-the knee bends in the plane of the input's knee; the foot takes the input's world
-rotation and the toes the input's local one. The result is slerped with the restyled
-leg by w. Only rotations change, so bone lengths are kept by construction. The target
-is the input's ankle at every frame (not a position frozen at touch-down), so a
-mistaken contact costs nothing worse than the input's own leg for a few frames.
+hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle and the
+knee bends in the plane of the input's knee (or, with the stance kept, beside the input's
+ankle and in the restyled knee's own plane); the foot takes the input's world rotation
+(turned as restyled, with the stance) and the toes the input's local one. The result is
+slerped with the restyled leg by w. Only rotations change, so bone lengths are kept by
+construction. The target follows the input's ankle at every frame (not a position frozen
+at touch-down), so a mistaken contact costs nothing worse than the input's own leg for
+a few frames.
 
 Floor (``FootLock._keep_above_floor``): a foot in the air whose ankle would go below its
 standing height over the floor, or whose ball would go below the floor, is lifted onto it
@@ -33,14 +35,27 @@ Pelvis height (``PelvisHeight``): the restyle bends knees and tilts the pelvis (
 exhausted stance is lower), but the root passes through, so with the hips at the input's
 height the restyled planted feet float above the floor (measured on held-out normal clips
 with the shipped model: median 4.4-5.9 cm in standing actions, 2.2-2.5 cm in walks) and
-the IK could only
-put them down by straightening the legs again, undoing the style. So the root is lowered
-(or raised) by the gap of the planted foot that floats most: that foot then reaches its
-target with the restyled leg bend, the other bends further. The gap is held through
-frames with no planted foot (a run's flight) and low-passed (a triple pole, like the
-correction filter) so the hips never jump; it is capped so a wild output cannot fold the
-legs. This moves the root, which the paper passes through: only vertically, only by what
-the restyled legs themselves ask for.
+the IK could only put them down by straightening the legs again, undoing the style. So
+the root is lowered (or raised) by the gap of the planted foot that floats most: that
+foot then reaches its target with the restyled leg bend, the other bends further. The gap
+is held through frames with no planted foot (a run's flight) and low-passed (a triple
+pole, like the correction filter) so the hips never jump; it is capped so a wild output
+cannot fold the legs. This moves the root, which the paper passes through: only
+vertically, only by what the restyled legs themselves ask for.
+
+Stance (``StanceOffset``, ``--feet stance``): a style stands differently (masculine feet
+wide apart, feminine close together, knees and toes turned in or out), and a lock onto the
+input's own ankles and knees undoes that: measured on held-out clips with the multi-style
+model, windows judged masculine fell from 81 % unlocked to 11 % locked, feminine from 77 %
+to 23 %, nearly all of it in the standing actions. With the stance kept, the target is the
+input's ankle plus a horizontal offset (where the restyled foot stands beside the input's)
+and the foot turns about the vertical as the restyled one; the knee keeps its restyled
+plane. While a foot is free the offsets follow the restyled leg; while it is locked they
+move at most ``stance_rate`` cm (``turn_rate`` degrees) a frame, so a planted foot lands
+where the restyled leg put it and stays there (it may settle into a new stance, never
+visibly slide). A stream starts with the offsets its first frame shows. It is a choice
+(``FEET``), not the default: it costs the pair model's exhausted stance (which lives in
+the pelvis height over the input's feet) more than it gives.
 """
 
 from __future__ import annotations
@@ -83,6 +98,25 @@ class ContactSettings:
     # change of the restyled stance and cost timing sync (0.796); 8 kept it (0.807).
     pelvis_tau: float = 8.0
     pelvis_cap: float = 12.0
+    # Stance: the most a planted foot stands beside the input's (cm; 0: on the input's
+    # own ankle, the knee bent in the input's plane) and how fast the offset may move while
+    # the foot is locked (cm/frame; a planted input foot moves 0.03-0.08, so this adds at
+    # most a third to its slide).
+    stance_cap: float = 0.0
+    stance_rate: float = 0.01
+    # ...and the foot's turn about the vertical against the input's (toes out or in):
+    # at most this many degrees, moving at most this fast while locked (0.04 degrees a
+    # frame moves the ball of a 15 cm foot 0.01 cm).
+    turn_cap: float = 30.0
+    turn_rate: float = 0.04
+
+
+# Where planted feet go (``--feet``). "input": on the input's own ankles, the knees bent in
+# the input's plane; the pair model reads most as exhausted so (90.9 % of held-out windows
+# against 81.6 % with "stance"). "stance": beside them, where the restyled legs stand,
+# turned and bent as restyled; the multi-style model's feminine, masculine and active read
+# most as themselves so (see models/checkpoints/MODEL_CARD.md for every figure).
+FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=15.0)}
 
 
 class PelvisHeight:
@@ -113,6 +147,43 @@ class PelvisHeight:
         held = np.clip(held, -self.cap, self.cap)
         smooth, self._state = lfilter(self._b, self._a, held, zi=self._state)
         return smooth
+
+
+class StanceOffset:
+    """Where each locked foot stands against the input's (see the module docstring): its
+    ankle's horizontal offset (x, z, cm) and its turn about the vertical (radians); state
+    carried from block to block like ``PelvisHeight``."""
+
+    def __init__(self, settings: ContactSettings):
+        self.cap, self.rate = settings.stance_cap, settings.stance_rate
+        self.turn_cap, self.turn_rate = np.radians(settings.turn_cap), np.radians(settings.turn_rate)
+        self._offset: list | None = None  # [[x, z, turn], [x, z, turn]] of the last frame
+
+    def offsets(self, wanted: np.ndarray, locked: np.ndarray) -> np.ndarray:
+        """Per frame in order: the restyled feet's offsets from the input's (n, 2, 3) and
+        which feet are locked (n, 2) -> the lock targets' offsets (n, 2, 3)."""
+        if self.cap <= 0:
+            return np.zeros_like(wanted)
+        length = np.linalg.norm(wanted[..., :2], axis=-1, keepdims=True)
+        wanted = np.concatenate([wanted[..., :2] * np.minimum(1.0, self.cap / np.maximum(length, 1e-9)),
+                                 np.clip(wanted[..., 2:], -self.turn_cap, self.turn_cap)], axis=-1)
+        out = np.empty_like(wanted)
+        current = self._offset if self._offset is not None else wanted[0].tolist()
+        # A rate limit is a recurrence; on Python floats because the daemon runs it one
+        # frame at a time per performer (numpy's per-call cost would be most of it).
+        for i, (frame, held) in enumerate(zip(wanted.tolist(), locked.tolist())):
+            for foot in (0, 1):
+                (x, z, turn), (wx, wz, wturn) = current[foot], frame[foot]
+                dx, dz, dturn = wx - x, wz - z, wturn - turn
+                if held[foot]:
+                    step = (dx * dx + dz * dz) ** 0.5
+                    if step > self.rate:
+                        dx, dz = dx * self.rate / step, dz * self.rate / step
+                    dturn = min(max(dturn, -self.turn_rate), self.turn_rate)
+                current[foot] = [x + dx, z + dz, turn + dturn]
+            out[i] = current
+        self._offset = current
+        return out
 
 
 def leg_chain(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray):
@@ -147,11 +218,12 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, ankle_target: np.ndarray,
-               knee_pole: np.ndarray, foot_world: np.ndarray) -> np.ndarray:
+               foot_world: np.ndarray, knee_pole: np.ndarray | None = None) -> np.ndarray:
     """Two-bone IK of both legs: local rotations (n, 2, 3, 4) of UpperLeg, LowerLeg and
     Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches),
-    bend the knee towards ``knee_pole`` (n, 2, 3) and give the foot the world rotation
-    ``foot_world`` (n, 2, 4); the hips are those of ``rotations``."""
+    bend the knee towards ``knee_pole`` (n, 2, 3; None: in the plane it has in
+    ``rotations``) and give the foot the world rotation ``foot_world`` (n, 2, 4); the hips
+    are those of ``rotations``."""
     pos, world, hips = leg_chain(roots, rotations, offsets)
     thigh = np.linalg.norm(offsets[LEG_INDEX[:, 1]], axis=-1)  # (2,) socket to knee
     shin = np.linalg.norm(offsets[LEG_INDEX[:, 2]], axis=-1)  # knee to ankle
@@ -161,7 +233,7 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     axis = _unit(to_target)
     along = (thigh ** 2 - shin ** 2 + dist ** 2) / (2 * dist)  # law of cosines
     height = np.sqrt(np.maximum(thigh ** 2 - along ** 2, 0.0))
-    pole = knee_pole - socket
+    pole = (knee if knee_pole is None else knee_pole) - socket
     bend = _unit(pole - np.sum(pole * axis, axis=-1, keepdims=True) * axis)
     new_knee = socket + along[..., None] * axis + height[..., None] * bend
     new_ankle = socket + dist[..., None] * axis
@@ -189,6 +261,7 @@ class FootLock:
         self.set_offsets(skeleton.offsets)
         self.ramp = settings.ramp if ramp is None else max(0, int(ramp))
         self.pelvis = PelvisHeight(settings.pelvis_tau, settings.pelvis_cap)
+        self.stance = StanceOffset(settings)
         self.frames = 0  # input frames pushed
         self._planted = np.zeros(2, dtype=bool)  # hysteresis state per foot
         self._floor_history: deque = deque(maxlen=settings.floor_window)  # lower ball height per frame
@@ -268,18 +341,26 @@ class FootLock:
         w = self.weights(t0, len(roots))
         self._forget_before(t0 - self.ramp)
         rows = np.flatnonzero(w.max(axis=1) > 0)
-        gaps = np.zeros((len(roots), 2))
         inputs = np.asarray(inputs, dtype=np.float64)
-        own = self._feet(roots, inputs)  # the input's ankles and balls: the lock's gap and the floor's ceiling
-        if len(rows):
-            gaps[rows] = self._feet(roots[rows], outputs[rows])[0][..., 1] - own[0][rows, :, 1]
+        own = self._feet(roots, inputs)  # the input's ankles and balls: the lock's targets and the floor's ceiling
+        # Where the restyled ankles are against the input's: the height gap sets the
+        # pelvis, the horizontal one the stance.
+        restyled = self._feet(roots, outputs)
+        gap = restyled[0] - own[0]  # (n, 2, 3)
         new_roots = roots.copy()
-        new_roots[:, 1] -= self.pelvis.drops(gaps, w > 0)
+        new_roots[:, 1] -= self.pelvis.drops(np.where(w > 0, gap[..., 1], 0.0), w > 0)
+        turn = _heading(restyled[1] - restyled[0]) - _heading(own[1] - own[0])
+        turn = (turn + np.pi) % (2 * np.pi) - np.pi
+        stance = self.stance.offsets(np.concatenate([gap[..., [0, 2]], turn[..., None]], axis=-1), w > 0)
         result = outputs
         if len(rows):
             pos_in, world_in, _ = leg_chain(roots[rows], inputs[rows], self.offsets)
-            solved = solve_legs(new_roots[rows], outputs[rows], self.offsets, pos_in[:, :, 2], pos_in[:, :, 1],
-                                world_in[:, :, 2])
+            beside = np.zeros((len(rows), 2, 3))
+            beside[..., [0, 2]] = stance[rows, :, :2]
+            turned = rot.exp_map(stance[rows, :, 2:] * np.array([0.0, 1.0, 0.0]))  # about the vertical
+            own_plane = self.stance.cap > 0  # the stance keeps the restyled knee's plane too
+            solved = solve_legs(new_roots[rows], outputs[rows], self.offsets, pos_in[:, :, 2] + beside,
+                                rot.multiply(turned, world_in[:, :, 2]), None if own_plane else pos_in[:, :, 1])
             result = outputs.copy()
             target = np.concatenate([solved, inputs[rows][:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
             weight = np.broadcast_to(w[rows][:, :, None], target.shape[:-1])
@@ -318,7 +399,7 @@ class FootLock:
             return outputs
         target = pos[:, :, 2].copy()
         target[..., 1] += up
-        solved = solve_legs(new_roots[rows], outputs[rows], self.offsets, target, pos[:, :, 1], world[:, :, 2])
+        solved = solve_legs(new_roots[rows], outputs[rows], self.offsets, target, world[:, :, 2])
         result = outputs.copy()
         legs = LEG_INDEX[:, :3]
         weight = np.broadcast_to(lift[:, :, None].astype(float), solved.shape[:-1])
@@ -387,6 +468,11 @@ def _feet_of_one_frame(root, rotations, leg_offsets):
         ankles.append(joints[2])
         balls.append(joints[3])
     return ankles, balls
+
+
+def _heading(v: np.ndarray) -> np.ndarray:
+    """(..., 3) -> the angle about the vertical (radians) that turns +Z onto v's floor part."""
+    return np.arctan2(v[..., 0], v[..., 2])
 
 
 def _speeds(positions: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip
-from stylecast.motion.footlock import FootLock
+from stylecast.motion.footlock import FEET, LEG_INDEX, FootLock
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings, restyle_stream
 
@@ -92,6 +92,26 @@ def test_daemon_output_equals_offline_restyle(hop):
     np.testing.assert_allclose(roots, expected.roots, atol=1e-6)  # cm: the same pelvis height
     np.testing.assert_array_equal(roots[:, [0, 2]], clip.root_positions[:, [0, 2]])  # only the height moves
     assert daemon.sessions[0].blender.late_frames == 0 or hop == 60
+
+
+def test_serve_feet_stance_is_restyle_feet_stance():
+    """``serve --feet stance`` reaches every session's foot lock: the daemon sends what
+    ``restyle --live --feet stance`` writes, and that differs from the default lock."""
+    from stylecast.models.restyle import restyle_rotations
+
+    clip = walk_clip(300)
+    standing = clip.rotations.copy()
+    standing[:, [HUMANOID_BONES.index("Hips"), *LEG_INDEX.ravel()]] = [0.0, 0.0, 0.0, 1.0]  # arms, spine move
+    clip = Clip(clip.skeleton, standing, np.tile([0.0, 95.0, 0.0], (len(standing), 1)), clip.fps)
+    daemon, frames = run_daemon(clip, StandInRestyler(), hop=15, feet="stance")
+    live = np.stack([f.rotations for f in frames["p0"]])
+    assert daemon.sessions[0].feet.planted_frames > 250  # standing: the lock works all along
+    offline_ = {feet: restyle_rotations(clip.rotations, StandInRestyler().restyle_words, 15, crossfade_frames=30,
+                                        live=True, roots=clip.root_positions, skeleton=clip.skeleton,
+                                        contacts=FEET[feet]).rotations for feet in FEET}
+    assert rot.angle_between(live, offline_["stance"]).max() < 1e-4
+    legs = LEG_INDEX[:, :3].ravel()
+    assert rot.angle_between(offline_["stance"][:, legs], offline_["input"][:, legs]).max() > 1.0
 
 
 @pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")

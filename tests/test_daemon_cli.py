@@ -25,6 +25,9 @@ def test_serve_refuses_bad_input_with_one_sentence():
     assert r.returncode == 2 and "unknown option lop" in r.stderr and "Traceback" not in r.stderr
     r = stylecast("serve", "--source", "bvh:///nope.bvh", "--out", "osc://127.0.0.1:1", "--control", "off")
     assert r.returncode == 2 and "Traceback" not in r.stderr
+    r = stylecast("serve", "--source", "bvh:///nope.bvh", "--feet", "glued", "--control", "off")
+    assert r.returncode == 2 and "--feet 'glued' is not known; use one of input, stance" in r.stderr
+    assert r.stderr.count("\n") == 1
 
 
 @pytest.mark.skipif(not WALK.exists(), reason="shared Bandai data not present")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import LEGS, ContactSettings, FootLock, _hysteresis, leg_chain
+from stylecast.motion.footlock import FEET, LEGS, ContactSettings, FootLock, _hysteresis, leg_chain
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
@@ -65,25 +65,76 @@ def test_hysteresis_holds_between_the_two_thresholds():
     assert state.tolist() == [False, True, True, True, False, False]
 
 
-def test_a_planted_foot_stays_within_a_millimetre_and_legs_keep_their_length():
+ON_INPUT_ANKLES, STANCE = FEET["input"], FEET["stance"]  # --feet input (the default), --feet stance
+
+
+def horizontal_speed(p: np.ndarray) -> np.ndarray:
+    """(n, 2, 3) positions -> (n - 1, 2) cm per frame on the floor plane."""
+    return np.linalg.norm(np.diff(p[..., [0, 2]], axis=0), axis=-1)
+
+
+def test_a_planted_foot_stays_still_and_legs_keep_their_length():
     roots, q = stepping()
     out_in = restyled(q)
-    lock = FootLock(SK)
-    contacts = lock.push(roots, q)
-    locked_roots, locked = lock.apply(0, roots, q, out_in)
     p_in, _, _ = leg_chain(roots, q, SK.offsets)
     p_raw, _, _ = leg_chain(roots, out_in, SK.offsets)
-    p_out, _, _ = leg_chain(locked_roots, locked, SK.offsets)
-    err_raw = np.linalg.norm(p_raw[:, :, 2] - p_in[:, :, 2], axis=-1)[contacts]
-    err = np.linalg.norm(p_out[:, :, 2] - p_in[:, :, 2], axis=-1)[contacts]
-    assert err_raw.max() > 5.0  # without the lock the planted foot wanders by centimetres
-    assert err.max() < 0.1  # with it: within a millimetre (positions are in cm)
-    for side, (upper, lower, foot, toes) in enumerate(LEGS):
-        for k, bone in ((1, lower), (2, foot)):
-            length = np.linalg.norm(p_out[:, side, k] - p_out[:, side, k - 1], axis=-1)
-            np.testing.assert_allclose(length, np.linalg.norm(SK.offsets[bone]), atol=1e-9)
-    # the ball of the foot follows as well (foot orientation and toes from the input)
-    assert np.linalg.norm(p_out[:, :, 3] - p_in[:, :, 3], axis=-1)[contacts].max() < 0.1
+    for settings in (STANCE, ON_INPUT_ANKLES):
+        lock = FootLock(SK, settings=settings)
+        contacts = lock.push(roots, q)
+        locked_roots, locked = lock.apply(0, roots, q, out_in)
+        p_out, _, _ = leg_chain(locked_roots, locked, SK.offsets)
+        still = contacts[1:] & contacts[:-1]
+        raw_slide = horizontal_speed(p_raw[:, :, 2])[still]
+        slide = horizontal_speed(p_out[:, :, 2])[still] - horizontal_speed(p_in[:, :, 2])[still]
+        assert raw_slide.max() > 0.5  # without the lock the planted foot wanders
+        assert slide.max() < settings.stance_rate + 1e-3  # with it: still (within the stance's creep)
+        for side, (upper, lower, foot, toes) in enumerate(LEGS):
+            for k, bone in ((1, lower), (2, foot)):
+                length = np.linalg.norm(p_out[:, side, k] - p_out[:, side, k - 1], axis=-1)
+                np.testing.assert_allclose(length, np.linalg.norm(SK.offsets[bone]), atol=1e-9)
+    # Without the stance offset the planted foot is the input's own, within a millimetre
+    # (positions in cm), the ball of the foot too (foot orientation and toes from the input).
+    err = np.linalg.norm(p_out[:, :, 2:4] - p_in[:, :, 2:4], axis=-1)[contacts]
+    assert err.max() < 0.1
+
+
+def spread(q: np.ndarray, degrees: np.ndarray) -> np.ndarray:
+    """A 'restyle' into a wider stance: each thigh rolled outwards by ``degrees`` (per frame)."""
+    out = q.copy()
+    for side, sign in (("Left", 1.0), ("Right", -1.0)):
+        j = HUMANOID_BONES.index(f"{side}UpperLeg")
+        v = np.zeros((len(q), 3))
+        v[:, 2] = sign * np.radians(degrees)
+        out[:, j] = rot.multiply(out[:, j], rot.exp_map(v))
+    return out
+
+
+def test_a_restyled_stance_is_kept_and_a_planted_foot_only_creeps_into_a_new_one():
+    roots, q = stepping(240)
+    standing = np.tile(q[:1], (240, 1, 1))  # both feet planted all the time
+    roots = np.tile(roots[:1], (240, 1))
+    angle = np.where(np.arange(240) < 120, 8.0, 0.0)  # wide for two seconds, then narrow again
+    out_in = spread(standing, angle)
+    p_in, _, _ = leg_chain(roots, standing, SK.offsets)
+    p_raw, _, _ = leg_chain(roots, out_in, SK.offsets)
+
+    def width(p):
+        return np.abs(p[:, 0, 2, 0] - p[:, 1, 2, 0])
+
+    assert (width(p_raw) - width(p_in))[:120].min() > 15.0  # the restyle spreads the feet
+    results = {}
+    for name, settings in (("stance", STANCE), ("input", ON_INPUT_ANKLES)):
+        lock = FootLock(SK, settings=settings)
+        contacts = lock.push(roots, standing)
+        new_roots, out = lock.apply(0, roots, standing, out_in)
+        results[name] = p_out = leg_chain(new_roots, out, SK.offsets)[0]
+        assert contacts[1:].all()
+        assert horizontal_speed(p_out[1:, :, 2]).max() < settings.stance_rate + 1e-6  # never slides
+    kept, lost = width(results["stance"]), width(results["input"])
+    np.testing.assert_allclose(kept[:120], width(p_raw)[:120], atol=0.05)  # the wide stance is kept
+    np.testing.assert_allclose(lost[1:], width(p_in)[1:], atol=0.05)  # locked on the input's ankles: undone
+    # When the restyle narrows the stance again the planted feet creep, 0.6 cm a second.
+    assert kept[-1] < kept[119] - 2 * 120 * 0.01 + 0.05
 
 
 def test_streaming_a_frame_at_a_time_equals_the_whole_clip():
@@ -167,7 +218,8 @@ def test_the_pelvis_lowers_so_a_restyled_knee_bend_stands_on_the_planted_feet():
     assert np.abs(bend_flat[settled] - bend_in[settled]).max() < 0.5
     assert (bend_in - bend_restyled)[settled].min() > 20.0  # the two really differ
     p_out, _, _ = leg_chain(new_roots, locked, SK.offsets)
-    assert np.linalg.norm(p_out[:, :, 2] - p_in[:, :, 2], axis=-1)[contacts].max() < 0.1  # feet planted
+    assert np.abs(p_out[:, :, 2, 1] - p_in[:, :, 2, 1])[contacts].max() < 0.1  # feet on the floor...
+    assert horizontal_speed(p_out[1:, :, 2]).max() < 1e-6  # ...and still
     # The hips settle smoothly from the stream's start (no step in height or speed).
     assert np.abs(np.diff(new_roots[:, 1], 2)).max() < 0.1 * gap
 
@@ -279,3 +331,55 @@ def test_the_one_frame_float_path_equals_the_array_path():
         ankle, ball = _feet_of_one_frame(roots[t], q[t], lock._leg_offsets)
         np.testing.assert_allclose(ankle, pos[t, :, 2], atol=1e-9)
         np.testing.assert_allclose(ball, pos[t, :, 3], atol=1e-9)
+
+
+def test_a_restyled_turn_of_the_feet_is_kept_while_they_stay_planted():
+    roots, q = stepping(120)
+    standing = np.tile(q[:1], (120, 1, 1))
+    roots = np.tile(roots[:1], (120, 1))
+    toes_out = standing.copy()
+    for side, sign in (("Left", 1.0), ("Right", -1.0)):  # each foot turned outwards by 20 degrees
+        j = HUMANOID_BONES.index(f"{side}Foot")
+        toes_out[:, j] = rot.multiply(toes_out[:, j], rot.exp_map(np.array([0.0, sign * np.radians(20.0), 0.0])))
+
+    def heading(p):  # degrees about the vertical of each foot, ankle to ball
+        d = p[:, :, 3] - p[:, :, 2]
+        return np.degrees(np.arctan2(d[..., 0], d[..., 2]))
+
+    p_in, p_raw = (leg_chain(roots, r, SK.offsets)[0] for r in (standing, toes_out))
+    assert np.abs(heading(p_raw) - heading(p_in)).min() > 19.0
+    for settings, expected in ((STANCE, p_raw), (ON_INPUT_ANKLES, p_in)):
+        lock = FootLock(SK, settings=settings)
+        lock.push(roots, standing)
+        new_roots, out = lock.apply(0, roots, standing, toes_out)
+        p_out = leg_chain(new_roots, out, SK.offsets)[0]
+        np.testing.assert_allclose(heading(p_out)[1:], heading(expected)[1:], atol=0.1)
+        assert horizontal_speed(p_out[1:, :, 3]).max() < 1e-6  # the balls of the feet do not move
+
+
+def test_a_planted_leg_bends_its_knee_the_way_the_restyle_turned_it():
+    roots, q = stepping(120)
+    standing = np.tile(q[:1], (120, 1, 1))
+    roots = np.tile(roots[:1], (120, 1))
+    knees_in = crouched(standing)
+    for side, sign in (("Left", -1.0), ("Right", 1.0)):  # each thigh twisted inwards about its length
+        j = HUMANOID_BONES.index(f"{side}UpperLeg")
+        knees_in[:, j] = rot.multiply(knees_in[:, j], rot.exp_map(np.array([0.0, sign * np.radians(25.0), 0.0])))
+
+    def knee_direction(p):  # unit vector from the hip-ankle line to the knee
+        axis = p[:, :, 2] - p[:, :, 0]
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        k = p[:, :, 1] - p[:, :, 0]
+        k -= np.sum(k * axis, axis=-1, keepdims=True) * axis
+        return k / np.linalg.norm(k, axis=-1, keepdims=True)
+
+    lock = FootLock(SK, settings=STANCE)
+    lock.push(roots, standing)
+    new_roots, out = lock.apply(0, roots, standing, knees_in)
+    got, wanted, plain = (knee_direction(leg_chain(r, x, SK.offsets)[0])
+                          for r, x in ((new_roots, out), (roots, knees_in), (roots, crouched(standing))))
+    angle = np.degrees(np.arccos(np.clip(np.sum(got * wanted, -1), -1, 1)))[1:]
+    turned = np.degrees(np.arccos(np.clip(np.sum(plain * wanted, -1), -1, 1)))[1:]
+    assert turned.min() > 15.0  # the twist really turns the knees
+    assert angle[60:].max() < 0.1  # and the locked legs keep it, once the pelvis has settled
+    assert angle.max() < 3.0  # (while it comes down, the knee's plane moves with the hip)
