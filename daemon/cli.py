@@ -68,9 +68,10 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unbundled", dest="bundled", action="store_false", default=None,
                    help="send one OSC message per datagram (for receivers without bundle support)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
-    p.add_argument("--feet", default=None, metavar="input|stance",
-                   help="planted feet on the input's own ankles (input, the default) or where the restyled "
-                        "legs stand (stance: keeps a style's stance, e.g. the multistyle model's masculine)")
+    p.add_argument("--feet", default=None, metavar="auto|input|stance",
+                   help="planted feet on the input's own ankles (input) or where the restyled legs stand "
+                        "(stance: keeps a style's stance); default auto: the model's own (the pair model input, "
+                        "the multistyle model stance)")
     p.add_argument("--workers", type=int, default=None,
                    help="worker processes to spread the performers over, each with its own model (default 1)")
     p.add_argument("--device", default=None,

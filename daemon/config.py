@@ -50,7 +50,7 @@ class DaemonConfig:
     duration: float = 0.0  # seconds; 0 = until stopped
     device: str = "auto"  # where the model runs: auto (CUDA when present), cpu, cuda[:N]
     workers: int = 1  # processes the performers are spread over (daemon.workers)
-    feet: str = "input"  # where planted feet go (motion.footlock.FEET): input, stance
+    feet: str = "auto"  # where planted feet go (motion.footlock.FEET): auto (the model's), input, stance
 
     def validate(self) -> "DaemonConfig":
         from .latency import LATENCY_PRESETS
@@ -71,10 +71,10 @@ class DaemonConfig:
             raise UserError(f"--crossfade {self.crossfade} is out of range; use 0 to 60 seconds")
         if self.status_interval <= 0:
             raise UserError("--status-interval must be positive")
-        from stylecast.motion.footlock import FEET
+        from stylecast.motion.footlock import AUTO_FEET, FEET
 
-        if self.feet not in FEET:
-            raise UserError(f"--feet {self.feet!r} is not known; use one of {', '.join(FEET)}")
+        if self.feet not in (AUTO_FEET, *FEET):
+            raise UserError(f"--feet {self.feet!r} is not known; use one of {', '.join((AUTO_FEET, *FEET))}")
         if not 1 <= self.workers <= 256:
             raise UserError(f"--workers {self.workers} is out of range; use 1 to 256 processes")
         if self.style:

@@ -36,7 +36,7 @@ import threading
 
 from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import FEET
+from stylecast.motion.footlock import feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings
 
@@ -147,7 +147,8 @@ class Daemon:
             if tuple(skeleton.names) != HUMANOID_BONES:
                 raise UserError(f"source {source.performer!r} does not deliver the humanoid skeleton")
             session = Session(k, source, self.settings, skeleton,
-                              phase=stagger_phase(self.settings.hop, k, len(sources)), contacts=FEET[self.config.feet])
+                              phase=stagger_phase(self.settings.hop, k, len(sources)),
+                              contacts=feet_for(self.config.feet, self.worker.restyler))
             session.intensity = self.config.intensity
             session.set_bypass(self.config.bypass)
             self.sessions.append(session)

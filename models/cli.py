@@ -72,9 +72,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="render as the live daemon does (start in pass-through and fade in, no mirrored "
                         "pre-roll): the same frames `stylecast serve` sends for this clip")
     p.add_argument("--map", type=Path, help="JSON/TOML table of source joint name -> humanoid bone")
-    p.add_argument("--feet", default="input", metavar="input|stance",
-                   help="planted feet on the input's own ankles (input, the default) or where the restyled legs "
-                        "stand (stance), as `serve --feet`")
+    p.add_argument("--feet", default="auto", metavar="auto|input|stance",
+                   help="planted feet on the input's own ankles (input) or where the restyled legs stand "
+                        "(stance); default auto: the model's own, as `serve --feet`")
     p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
     p.add_argument("--device", default="auto", help="where the model runs: auto (CUDA when present), cpu or cuda[:N]")
     p.set_defaults(func=run_restyle)

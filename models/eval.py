@@ -14,7 +14,7 @@ mean pose difference between the two styles added to the input: the cheapest pos
 "style"), the first shipped model (``normal2exhausted-v1``, the figure to beat), the
 coherence baseline, the model under test, and any ``--variant NAME=PATH``; and the model
 under test without each stage around it (the foot lock, the correction low-pass, the
-pelvis height), to show what each stage does, and with ``--feet stance``.
+pelvis height), to show what each stage does, and with the other ``--feet`` than its own.
 
 Measures (``metrics.py`` for the arithmetic, ``judges.py`` for the classifiers), each
 overall and per action:
@@ -36,13 +36,13 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import FEET, ContactSettings
+from stylecast.motion.footlock import AUTO_FEET, FEET, ContactSettings, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.words import DEFAULT_HOP
 
@@ -74,7 +74,7 @@ class Variant:
     note: str
     lock_feet: bool = True  # the product always locks; one row shows what the lock does
     smooth: bool = True  # ...and low-passes the correction; one row shows what that does
-    contacts: ContactSettings = FEET["input"]  # ...as --feet input, with the pelvis height; rows change each
+    contacts: ContactSettings = FEET["input"]  # ...with a foot lock (the model's own) and the pelvis height
 
 
 # --- the paper's smoothness and the seams ----------------------------------------------------
@@ -133,7 +133,8 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
                        (BASELINE, "Adult2Child temporal-coherence baseline")):
         r = _optional_model(name, log)  # shipped pair models, beside a pair model of the same styles
         if r is not None and r.styles == proposed.styles and r.path != proposed.path:
-            out.append(Variant(name, r.for_target(proposed.target_style).restyle_words, note))
+            out.append(Variant(name, r.for_target(proposed.target_style).restyle_words, note,
+                               contacts=feet_for(AUTO_FEET, r)))
     for name, path in extra.items():
         try:
             other = Restyler.load(path).for_target(proposed.target_style)
@@ -144,18 +145,20 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
             log(f"skipping {name}: it restyles {other.source_style} input, not {source}")
             continue
         out.append(Variant(name, other.restyle_words, f"`{path}` ({other.name}, {other.source_style} -> "
-                                                      f"{other.target_style})"))
+                                                      f"{other.target_style})", contacts=feet_for(AUTO_FEET, other)))
     out.append(Variant("proposed-unlocked", proposed.restyle_words, "the model under test without the foot lock",
                        lock_feet=False))
+    own = feet_for(AUTO_FEET, proposed)  # the foot lock it ships with (``--feet auto``)
     out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
-                       "the model under test without the correction low-pass", smooth=False))
+                       "the model under test without the correction low-pass", smooth=False, contacts=own))
     out.append(Variant("proposed-fixed-pelvis", proposed.restyle_words,
                        "the model under test with the root passed through (no pelvis height)",
-                       contacts=ContactSettings(pelvis_tau=0)))
-    out.append(Variant("proposed-stance", proposed.restyle_words,
-                       "the model under test with planted feet where its legs stand (`--feet stance`)",
-                       contacts=FEET["stance"]))
-    out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test)"))
+                       contacts=replace(own, pelvis_tau=0)))
+    other = next(name for name in FEET if FEET[name] != own)
+    out.append(Variant(f"proposed-feet-{other}", proposed.restyle_words,
+                       f"the model under test with `--feet {other}` instead of its own", contacts=FEET[other]))
+    out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test, "
+                                                           f"`--feet {proposed.feet}`)", contacts=own))
     return out
 
 

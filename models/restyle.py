@@ -134,12 +134,12 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
 
 def restyle_file(input_path, output_path, model=None, direction: str = "a2b", intensity: float = 1.0,
                  hop: int = DEFAULT_HOP, fps: float | None = None, map_file=None, restyler=None, live: bool = False,
-                 device: str = "cpu", style: str | None = None, feet: str = "input") -> dict:
+                 device: str = "cpu", style: str | None = None, feet: str = "auto") -> dict:
     """``style``: a style name or mix ("elderly", "elderly:0.5,youthful:0.5"), checked before
     anything is read; a pair model takes one of its two styles (the direction follows).
     ``feet``: where planted feet go (``motion.footlock.FEET``)."""
     from stylecast.motion.bvh import read_bvh, write_bvh
-    from stylecast.motion.footlock import FEET
+    from stylecast.motion.footlock import AUTO_FEET, FEET, feet_for
     from stylecast.motion.humanoid import load_user_map
 
     from .restyler import Restyler
@@ -148,8 +148,8 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
 
     if fps is not None and not fps > 0:
         raise UserError(f"--fps must be positive, got {fps:g}")
-    if feet not in FEET:
-        raise UserError(f"--feet {feet!r} is not known; use one of {', '.join(FEET)}")
+    if feet not in (AUTO_FEET, *FEET):
+        raise UserError(f"--feet {feet!r} is not known; use one of {', '.join((AUTO_FEET, *FEET))}")
     if style is not None:
         parse_mix(style)  # unknown names are refused before the model and the clip are read
     restyler = restyler or Restyler.load(model, direction, device)
@@ -157,7 +157,7 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
         restyler = restyler.with_style(style)
     user_map = load_user_map(map_file) if map_file else None
     clip = read_bvh(Path(input_path))
-    out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live, FEET[feet])
+    out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live, feet_for(feet, restyler))
     write_bvh(out, Path(output_path))
     return {"joints": len(out.skeleton), "frames": out.num_frames, "fps": out.fps, "model": restyler.name,
             "direction": restyler.direction, "from": restyler.source_style, "to": restyler.target_style}

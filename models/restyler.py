@@ -33,6 +33,8 @@ WORD_LENGTH = 60
 
 
 class Restyler:
+    feet = "input"  # the foot lock it reads best with (motion.footlock.FEET; measured in the model card)
+
     def __init__(self, model, rep: R.Representation, metadata: dict, direction: str = "a2b",
                  path: Path | None = None):
         if direction not in ("a2b", "b2a"):

@@ -114,9 +114,18 @@ class ContactSettings:
 # Where planted feet go (``--feet``). "input": on the input's own ankles, the knees bent in
 # the input's plane; the pair model reads most as exhausted so (90.9 % of held-out windows
 # against 81.6 % with "stance"). "stance": beside them, where the restyled legs stand,
-# turned and bent as restyled; the multi-style model's feminine, masculine and active read
-# most as themselves so (see models/checkpoints/MODEL_CARD.md for every figure).
+# turned and bent as restyled; the multi-style model reads most as its targets so (61.9 %
+# on average over six against 50.4 %). Each model kind names its own (``feet``), which
+# "auto", the default, takes (figures in models/checkpoints/MODEL_CARD.md).
 FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=15.0)}
+AUTO_FEET = "auto"  # the model's own choice (its ``feet`` attribute), else "input"
+
+
+def feet_for(name: str, restyler=None) -> ContactSettings:
+    """``--feet NAME`` (checked beforehand) for ``restyler``: "auto" takes the model's own."""
+    if name == AUTO_FEET:
+        name = getattr(restyler, "feet", "input")
+    return FEET[name]
 
 
 class PelvisHeight:
@@ -159,11 +168,15 @@ class StanceOffset:
         self.turn_cap, self.turn_rate = np.radians(settings.turn_cap), np.radians(settings.turn_rate)
         self._offset: list | None = None  # [[x, z, turn], [x, z, turn]] of the last frame
 
-    def offsets(self, wanted: np.ndarray, locked: np.ndarray) -> np.ndarray:
-        """Per frame in order: the restyled feet's offsets from the input's (n, 2, 3) and
-        which feet are locked (n, 2) -> the lock targets' offsets (n, 2, 3)."""
+    def track(self, own: tuple, restyled: tuple, locked: np.ndarray) -> np.ndarray | None:
+        """Per frame in order: the input's and the restyled (ankle, ball) positions, each
+        (n, 2, 3), and which feet are locked (n, 2) -> the lock targets' offsets from the
+        input's feet (n, 2, 3: x, z in cm and the turn in radians), or None when off."""
         if self.cap <= 0:
-            return np.zeros_like(wanted)
+            return None
+        turn = _heading(restyled[1] - restyled[0]) - _heading(own[1] - own[0])
+        turn = (turn + np.pi) % (2 * np.pi) - np.pi
+        wanted = np.concatenate([(restyled[0] - own[0])[..., [0, 2]], turn[..., None]], axis=-1)
         length = np.linalg.norm(wanted[..., :2], axis=-1, keepdims=True)
         wanted = np.concatenate([wanted[..., :2] * np.minimum(1.0, self.cap / np.maximum(length, 1e-9)),
                                  np.clip(wanted[..., 2:], -self.turn_cap, self.turn_cap)], axis=-1)
@@ -343,24 +356,22 @@ class FootLock:
         rows = np.flatnonzero(w.max(axis=1) > 0)
         inputs = np.asarray(inputs, dtype=np.float64)
         own = self._feet(roots, inputs)  # the input's ankles and balls: the lock's targets and the floor's ceiling
-        # Where the restyled ankles are against the input's: the height gap sets the
-        # pelvis, the horizontal one the stance.
+        # Where the restyled feet are against the input's: the ankles' height gap sets the
+        # pelvis, the rest the stance (``--feet stance``).
         restyled = self._feet(roots, outputs)
-        gap = restyled[0] - own[0]  # (n, 2, 3)
+        gap = restyled[0][..., 1] - own[0][..., 1]  # (n, 2)
         new_roots = roots.copy()
-        new_roots[:, 1] -= self.pelvis.drops(np.where(w > 0, gap[..., 1], 0.0), w > 0)
-        turn = _heading(restyled[1] - restyled[0]) - _heading(own[1] - own[0])
-        turn = (turn + np.pi) % (2 * np.pi) - np.pi
-        stance = self.stance.offsets(np.concatenate([gap[..., [0, 2]], turn[..., None]], axis=-1), w > 0)
+        new_roots[:, 1] -= self.pelvis.drops(np.where(w > 0, gap, 0.0), w > 0)
+        stance = self.stance.track(own, restyled, w > 0)
         result = outputs
         if len(rows):
             pos_in, world_in, _ = leg_chain(roots[rows], inputs[rows], self.offsets)
-            beside = np.zeros((len(rows), 2, 3))
-            beside[..., [0, 2]] = stance[rows, :, :2]
-            turned = rot.exp_map(stance[rows, :, 2:] * np.array([0.0, 1.0, 0.0]))  # about the vertical
-            own_plane = self.stance.cap > 0  # the stance keeps the restyled knee's plane too
-            solved = solve_legs(new_roots[rows], outputs[rows], self.offsets, pos_in[:, :, 2] + beside,
-                                rot.multiply(turned, world_in[:, :, 2]), None if own_plane else pos_in[:, :, 1])
+            ankle, foot, knee = pos_in[:, :, 2], world_in[:, :, 2], pos_in[:, :, 1]  # the input's own
+            if stance is not None:  # beside them, turned as restyled, the knee in its restyled plane
+                ankle = ankle + stance[rows, :, :2] @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+                foot = rot.multiply(rot.exp_map(stance[rows, :, 2:] * np.array([0.0, 1.0, 0.0])), foot)
+                knee = None
+            solved = solve_legs(new_roots[rows], outputs[rows], self.offsets, ankle, foot, knee)
             result = outputs.copy()
             target = np.concatenate([solved, inputs[rows][:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
             weight = np.broadcast_to(w[rows][:, :, None], target.shape[:-1])

@@ -106,6 +106,8 @@ def test_serve_feet_stance_is_restyle_feet_stance():
     daemon, frames = run_daemon(clip, StandInRestyler(), hop=15, feet="stance")
     live = np.stack([f.rotations for f in frames["p0"]])
     assert daemon.sessions[0].feet.planted_frames > 250  # standing: the lock works all along
+    # --feet auto, with a model that names no lock of its own (the stand-in): the input's feet
+    assert run_daemon(clip, StandInRestyler(), hop=15)[0].sessions[0].feet.settings == FEET["input"]
     offline_ = {feet: restyle_rotations(clip.rotations, StandInRestyler().restyle_words, 15, crossfade_frames=30,
                                         live=True, roots=clip.root_positions, skeleton=clip.skeleton,
                                         contacts=FEET[feet]).rotations for feet in FEET}

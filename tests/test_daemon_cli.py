@@ -26,7 +26,7 @@ def test_serve_refuses_bad_input_with_one_sentence():
     r = stylecast("serve", "--source", "bvh:///nope.bvh", "--out", "osc://127.0.0.1:1", "--control", "off")
     assert r.returncode == 2 and "Traceback" not in r.stderr
     r = stylecast("serve", "--source", "bvh:///nope.bvh", "--feet", "glued", "--control", "off")
-    assert r.returncode == 2 and "--feet 'glued' is not known; use one of input, stance" in r.stderr
+    assert r.returncode == 2 and "--feet 'glued' is not known; use one of auto, input, stance" in r.stderr
     assert r.stderr.count("\n") == 1
 
 

@@ -13,6 +13,7 @@ import torch
 
 from stylecast.daemon.commands import parse_command
 from stylecast.daemon.config import DaemonConfig
+from stylecast.motion.footlock import FEET
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
@@ -98,6 +99,8 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
             daemon.step()
         assert model.calls and all(w is None for _, w in model.calls)  # nobody chose: the model's own (youthful) for all
         assert np.allclose(daemon.worker.restyler.weights, one_hot("youthful"))
+        # --feet auto: a multistyle model's sessions keep the restyled stance (motion.footlock.FEET)
+        assert all(s.feet.settings == FEET["stance"] for s in daemon.sessions)
         accepted = daemon.control.counts["accepted"]
         client.sendto(osc("/stylecast/style", "elderly", "alice"), ("127.0.0.1", port))
         client.sendto(osc("/stylecast/mix", "active", 0.5, "feminine", 0.5, "bob"), ("127.0.0.1", port))

@@ -86,7 +86,7 @@ def test_restyle_refuses_an_unmappable_skeleton_with_a_model(tiny_run, tmp_path,
 def test_restyle_refuses_an_unknown_feet_mode_before_reading_anything(tmp_path, capsys):
     code = main(["restyle", "missing.bvh", "-o", str(tmp_path / "x.bvh"), "--feet", "glued"])
     err = capsys.readouterr().err
-    assert code == 2 and "--feet 'glued' is not known; use one of input, stance" in err and err.count("\n") == 1
+    assert code == 2 and "--feet 'glued' is not known; use one of auto, input, stance" in err and err.count("\n") == 1
 
 
 def test_restyle_refuses_a_corrupt_checkpoint(tmp_path, capsys):
