@@ -53,9 +53,11 @@ and the foot turns about the vertical as the restyled one; the knee keeps its re
 plane. While a foot is free the offsets follow the restyled leg; while it is locked they
 move at most ``stance_rate`` cm (``turn_rate`` degrees) a frame, so a planted foot lands
 where the restyled leg put it and stays there (it may settle into a new stance, never
-visibly slide). A stream starts with the offsets its first frame shows. It is a choice
-(``FEET``), not the default: it costs the pair model's exhausted stance (which lives in
-the pelvis height over the input's feet) more than it gives.
+visibly slide). Until a stream's first fade-in from pass-through has ended, the offsets
+follow freely: the restyled stance arrives after the feet are down. Each model kind names
+its lock (``FEET``, ``--feet auto``): the pair model keeps the input's feet, since the
+stance costs its exhausted (which lives in the pelvis height over the input's feet) more
+than it gives.
 """
 
 from __future__ import annotations
@@ -167,13 +169,21 @@ class StanceOffset:
         self.cap, self.rate = settings.stance_cap, settings.stance_rate
         self.turn_cap, self.turn_rate = np.radians(settings.turn_cap), np.radians(settings.turn_rate)
         self._offset: list | None = None  # [[x, z, turn], [x, z, turn]] of the last frame
+        # A stream starts in pass-through and fades the restyle in, so the restyled stance
+        # arrives after the feet are down: before this frame the offsets follow it freely
+        # (the whole body is moving into the style then), or a standing performer's feet
+        # would keep the input's stance for good (measured: width 15.1 cm against the
+        # input's 15.2 and the restyle's 7-15, a feminine raise-up-both-hands take).
+        self.settled_from = 0
 
-    def track(self, own: tuple, restyled: tuple, locked: np.ndarray) -> np.ndarray | None:
-        """Per frame in order: the input's and the restyled (ankle, ball) positions, each
-        (n, 2, 3), and which feet are locked (n, 2) -> the lock targets' offsets from the
-        input's feet (n, 2, 3: x, z in cm and the turn in radians), or None when off."""
+    def track(self, t0: int, own: tuple, restyled: tuple, locked: np.ndarray) -> np.ndarray | None:
+        """Frames t0 .. t0+n-1 in order: the input's and the restyled (ankle, ball)
+        positions, each (n, 2, 3), and which feet are locked (n, 2) -> the lock targets'
+        offsets from the input's feet (n, 2, 3: x, z in cm and the turn in radians), or
+        None when off."""
         if self.cap <= 0:
             return None
+        locked = locked & (np.arange(t0, t0 + len(locked)) >= self.settled_from)[:, None]
         turn = _heading(restyled[1] - restyled[0]) - _heading(own[1] - own[0])
         turn = (turn + np.pi) % (2 * np.pi) - np.pi
         wanted = np.concatenate([(restyled[0] - own[0])[..., [0, 2]], turn[..., None]], axis=-1)
@@ -286,10 +296,16 @@ class FootLock:
         self.locked_frames = 0
 
     @classmethod
-    def for_stream(cls, skeleton: Skeleton, delay: int, settings: ContactSettings = ContactSettings()) -> "FootLock":
+    def for_stream(cls, skeleton: Skeleton, delay: int, settings: ContactSettings = ContactSettings(),
+                   fade_in: int = 0) -> "FootLock":
         """The lock a stream with ``delay`` frames of look-ahead can run: its ramp looks
-        ahead at most ``delay`` frames (the daemon and ``restyle`` both build it here)."""
-        return cls(skeleton, ramp=min(settings.ramp, delay), settings=settings)
+        ahead at most ``delay`` frames (the daemon and ``restyle`` both build it here).
+        ``fade_in``: the frames by which the stream's first fade from pass-through to the
+        restyle has ended (the first word and the crossfade); the stance follows freely
+        until then (see ``StanceOffset``)."""
+        lock = cls(skeleton, ramp=min(settings.ramp, delay), settings=settings)
+        lock.stance.settled_from = int(fade_in)
+        return lock
 
     def set_offsets(self, offsets: np.ndarray) -> None:
         """The performer's proportions changed (a calibration, a VMC sender's offsets)."""
@@ -362,7 +378,7 @@ class FootLock:
         gap = restyled[0][..., 1] - own[0][..., 1]  # (n, 2)
         new_roots = roots.copy()
         new_roots[:, 1] -= self.pelvis.drops(np.where(w > 0, gap, 0.0), w > 0)
-        stance = self.stance.track(own, restyled, w > 0)
+        stance = self.stance.track(t0, own, restyled, w > 0)
         result = outputs
         if len(rows):
             pos_in, world_in, _ = leg_chain(roots[rows], inputs[rows], self.offsets)

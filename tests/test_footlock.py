@@ -383,3 +383,28 @@ def test_a_planted_leg_bends_its_knee_the_way_the_restyle_turned_it():
     assert turned.min() > 15.0  # the twist really turns the knees
     assert angle[60:].max() < 0.1  # and the locked legs keep it, once the pelvis has settled
     assert angle.max() < 3.0  # (while it comes down, the knee's plane moves with the hip)
+
+
+def test_a_stance_that_fades_in_with_the_stream_is_taken_then_kept():
+    """A stream starts in pass-through and fades the restyle in while the feet are down: the
+    stance follows until that first fade has ended, then only creeps."""
+    roots, q = stepping(240)
+    standing = np.tile(q[:1], (240, 1, 1))
+    roots = np.tile(roots[:1], (240, 1))
+    angle = np.clip((np.arange(240) - 60) / 30, 0.0, 1.0) * 8.0  # the first word, then a fade ending at 90
+    out_in = spread(standing, angle)
+
+    def width(p):
+        return np.abs(p[:, 0, 2, 0] - p[:, 1, 2, 0])
+
+    wanted = width(leg_chain(roots, out_in, SK.offsets)[0])
+    got = {}
+    for fade_in in (0, 91):
+        lock = FootLock.for_stream(SK, delay=5, settings=STANCE, fade_in=fade_in)
+        lock.push(roots, standing)
+        new_roots, out = lock.apply(0, roots, standing, out_in)
+        p = leg_chain(new_roots, out, SK.offsets)[0]
+        got[fade_in] = width(p)
+        assert horizontal_speed(p[92:, :, 2]).max() < STANCE.stance_rate + 1e-6  # still once settled
+    np.testing.assert_allclose(got[91][91:], wanted[91:], atol=0.05)  # the faded-in stance is taken
+    assert got[0][-1] < wanted[-1] - 10.0  # without the settling it would only have crept towards it
