@@ -71,10 +71,9 @@ class DaemonConfig:
             raise UserError(f"--crossfade {self.crossfade} is out of range; use 0 to 60 seconds")
         if self.status_interval <= 0:
             raise UserError("--status-interval must be positive")
-        from stylecast.motion.footlock import AUTO_FEET, FEET
+        from stylecast.motion.footlock import check_feet
 
-        if self.feet not in (AUTO_FEET, *FEET):
-            raise UserError(f"--feet {self.feet!r} is not known; use one of {', '.join((AUTO_FEET, *FEET))}")
+        check_feet(self.feet)
         if not 1 <= self.workers <= 256:
             raise UserError(f"--workers {self.workers} is out of range; use 1 to 256 processes")
         if self.style:

@@ -140,7 +140,7 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
     anything is read; a pair model takes one of its two styles (the direction follows).
     ``feet``: where planted feet go (``motion.footlock.FEET``)."""
     from stylecast.motion.bvh import read_bvh, write_bvh
-    from stylecast.motion.footlock import AUTO_FEET, FEET, feet_for
+    from stylecast.motion.footlock import check_feet, feet_for
     from stylecast.motion.humanoid import load_user_map
 
     from .restyler import Restyler
@@ -149,8 +149,7 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
 
     if fps is not None and not fps > 0:
         raise UserError(f"--fps must be positive, got {fps:g}")
-    if feet not in (AUTO_FEET, *FEET):
-        raise UserError(f"--feet {feet!r} is not known; use one of {', '.join((AUTO_FEET, *FEET))}")
+    check_feet(feet)
     if style is not None:
         parse_mix(style)  # unknown names are refused before the model and the clip are read
     restyler = restyler or Restyler.load(model, direction, device)

@@ -70,6 +70,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy.signal import lfilter
 
 from . import rotations as rot
+from .errors import UserError
 from .humanoid import HUMANOID_BONES
 from .skeleton import Skeleton
 
@@ -121,6 +122,13 @@ class ContactSettings:
 # "auto", the default, takes (figures in models/checkpoints/MODEL_CARD.md).
 FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=15.0)}
 AUTO_FEET = "auto"  # the model's own choice (its ``feet`` attribute), else "input"
+
+
+def check_feet(name: str) -> str:
+    """A ``--feet`` name, or one sentence naming the known ones (before any work)."""
+    if name not in (AUTO_FEET, *FEET):
+        raise UserError(f"--feet {name!r} is not known; use one of {', '.join((AUTO_FEET, *FEET))}")
+    return name
 
 
 def feet_for(name: str, restyler=None) -> ContactSettings:
