@@ -37,11 +37,14 @@ from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
 from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
+from .averaging import WeightAverage
 from .device import Determinism, pick_device
 from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
 from . import representation as R
 from .representation import euler_features, get_representation
 
+GENERATOR_PREFIXES = ("G_a2b.", "G_b2a.")
+AVERAGE_PREFIX = "average."  # the weight average's tensors in train_state.safetensors
 CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
               "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
               "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
@@ -69,6 +72,7 @@ class TrainConfig:
     lambda_coherence: float = L.LAMBDA_COHERENCE
     lambda_gram: float = L.LAMBDA_GRAM
     lambda_overlap: float = 0.0  # overlapping words agree (losses.overlap_loss); 0 = off
+    ema: float = 0.0  # decay of the generators' weight average (averaging.py); 0 = ship the last weights
     network: NetworkConfig = field(default_factory=NetworkConfig)
 
     def to_dict(self) -> dict:
@@ -169,6 +173,7 @@ class Trainer:
         self.val_a = None if val_a is None or len(val_a) == 0 else self._encode(val_a[: cfg.val_words])
         self.val_b = None if val_b is None or len(val_b) == 0 else self._encode(val_b[: cfg.val_words])
         self.epoch = 0  # epochs completed
+        self.average = WeightAverage(self.model, GENERATOR_PREFIXES, cfg.ema) if cfg.ema > 0 else None
 
     # -- one step ---------------------------------------------------------------------
     def step(self, a, b, a_next=None, b_next=None) -> dict[str, float]:
@@ -196,6 +201,8 @@ class Trainer:
         self.opt_g.zero_grad(set_to_none=True)
         total.backward()
         self.opt_g.step()
+        if self.average is not None:
+            self.average.update(m)
         for p in m.discriminators():
             p.requires_grad_(True)
         d_a = L.discriminator_loss(m.D_a(a), m.D_a(fake_a.detach()))
@@ -277,7 +284,7 @@ class Trainer:
     def model_tensors(self, generators_only: bool = False) -> dict:
         sd = self.model.state_dict()
         if generators_only:
-            sd = {k: v for k, v in sd.items() if k.startswith(("G_a2b.", "G_b2a."))}
+            sd = {k: v for k, v in sd.items() if k.startswith(GENERATOR_PREFIXES)}
         return sd
 
     def save(self, out: Path, metrics: dict | None = None) -> None:
@@ -290,6 +297,9 @@ class Trainer:
             for pid, s in sd["state"].items():
                 for k, v in s.items():
                     state[f"{name}.{pid}.{k}"] = v.reshape(1) if v.dim() == 0 else v
+        if self.average is not None:
+            state.update(self.average.tensors(AVERAGE_PREFIX))
+            meta["average_updates"] = self.average.updates
         ckpt.save_checkpoint(out / "train_state.safetensors", state,
                              {**meta, "optimisers": layout, "config": self.cfg.to_dict()})
 
@@ -316,6 +326,8 @@ class Trainer:
                     state.setdefault(int(pid), {})[key] = t.reshape(()) if key == "step" else t
             opt.load_state_dict({"state": state, "param_groups": smeta["optimisers"][name]["param_groups"]})
         self.epoch = int(smeta["epochs_completed"])
+        if self.average is not None:
+            self.average.load(st, smeta.get("average_updates", 0), AVERAGE_PREFIX)
 
 
 def timed_epoch(trainer, bar=None) -> dict:
@@ -328,6 +340,20 @@ def timed_epoch(trainer, bar=None) -> dict:
     row["seconds"] = time.perf_counter() - t0
     row["cpu_seconds"] = time.process_time() - c0
     return row
+
+
+def write_models(out: Path, last: dict, average: WeightAverage | None, metadata, log=print) -> None:
+    """``model.safetensors``: the shippable generator(s), the weight average when the run kept
+    one (then the last weights go to ``model-raw.safetensors``, for the ablation).
+    ``metadata(tensors)``: the metadata of a file holding those tensors."""
+    files = [("model.safetensors", last, "the last training step's")]
+    if average is not None:
+        files = [("model-raw.safetensors", last, "the last training step's"),
+                 ("model.safetensors", average.tensors(), average.describe())]
+        log(f"model.safetensors holds the weight average ({average.describe()}); the last weights are in "
+            f"{out / 'model-raw.safetensors'}")
+    for name, tensors, weights in files:
+        ckpt.save_checkpoint(out / name, tensors, {**metadata(tensors), "weights": weights})
 
 
 def write_csv(path: Path, rows: list[dict], fields=CSV_FIELDS) -> None:
@@ -393,7 +419,7 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
     final = {"train_seconds": spent, "train_cpu_seconds": cpu, "epochs": trainer.epoch,
              **{k: v for k, v in (rows[-1] if rows else {}).items() if k.startswith("val_")}}
     meta = model_metadata(cfg, trainer.rep, {"epochs_completed": trainer.epoch, "metrics": final})
-    ckpt.save_checkpoint(out / "model.safetensors", trainer.model_tensors(generators_only=True), meta)
+    write_models(out, trainer.model_tensors(generators_only=True), trainer.average, lambda _: meta, log)
     (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
     log(f"done: {trainer.epoch} epochs in {spent / 60:.1f} min ({cpu / 60:.1f} CPU min); model at "
         f"{out / 'model.safetensors'}")

@@ -34,14 +34,17 @@ from stylecast.motion.humanoid import HUMANOID_BONES
 from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
+from .averaging import WeightAverage
 from .device import Determinism, pick_device
 from .multistyle import MultiStyleConfig, MultiStyleGAN
 from .networks import count_parameters, to_channels
 from .representation import get_representation
 from .styles import STYLES
-from .train import TrainConfig, shared_metadata, timed_epoch, write_csv
+from .train import TrainConfig, shared_metadata, timed_epoch, write_csv, write_models
 
 KIND = "multistyle"
+GENERATOR_PREFIX = "G."
+CODE_TABLE = GENERATOR_PREFIX + "codes.table"
 FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "G_total",
           "val_cycle", "val_diff")
 
@@ -72,11 +75,11 @@ def build_multistyle(cfg, reference=None):
     return MultiStyleGAN(net, rep.combine), rep
 
 
-def multistyle_metadata(cfg, rep, model: MultiStyleGAN, extra: dict | None = None) -> dict:
+def multistyle_metadata(cfg, rep, code_table, extra: dict | None = None) -> dict:
     meta = {
         "kind": KIND,
         "styles": list(STYLES),
-        "style_codes": model.G.codes.table.detach().cpu().numpy().round(6).tolist(),
+        "style_codes": code_table.detach().cpu().numpy().round(6).tolist(),
         **shared_metadata(cfg, rep, f"all {len(STYLES)} styles ({', '.join(STYLES)})"),
         "loss": "cycle-diff, any pair (x -> target -> own style)",
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "identity": cfg.lambda_identity},
@@ -109,6 +112,7 @@ class MultiStyleTrainer:
             self.val = [(k, torch.from_numpy(self._encode(val[s][:per]))) for k, s in enumerate(STYLES)]
         self.epoch = 0
         self.eye = torch.eye(len(STYLES), device=self.device)
+        self.average = WeightAverage(self.model, (GENERATOR_PREFIX,), cfg.ema) if cfg.ema > 0 else None
 
     def _encode(self, words: np.ndarray) -> np.ndarray:
         out = np.empty((*words.shape[:3], self.rep.channels), np.float32)
@@ -134,6 +138,8 @@ class MultiStyleTrainer:
         self.opt_g.zero_grad(set_to_none=True)
         total.backward()
         self.opt_g.step()
+        if self.average is not None:
+            self.average.update(m)
         for p in m.discriminators():
             p.requires_grad_(True)
         d = L.discriminator_loss(m.D(x, src), m.D(fake.detach(), tgt))
@@ -196,11 +202,17 @@ class MultiStyleTrainer:
                 dif.append(L.diff_loss(rec, x).item())
         return {"val_cycle": float(np.mean(cyc)), "val_diff": float(np.mean(dif))}
 
-    def save(self, path: Path, generator_only: bool, extra: dict) -> None:
+    def save(self, path: Path, extra: dict) -> None:
+        """Generator and discriminator, to go on from (the last weights)."""
         sd = self.model.state_dict()
-        if generator_only:
-            sd = {k: v for k, v in sd.items() if k.startswith("G.")}
-        ckpt.save_checkpoint(path, sd, multistyle_metadata(self.cfg, self.rep, self.model, extra))
+        ckpt.save_checkpoint(path, sd, multistyle_metadata(self.cfg, self.rep, sd[CODE_TABLE], extra))
+
+    def save_models(self, out: Path, extra: dict, log=print) -> None:
+        """The generator alone: ``model.safetensors`` (and ``model-raw`` with ``--ema``); the
+        code table is in the JSON too, so each file's is written from the weights it holds."""
+        last = {k: v for k, v in self.model.state_dict().items() if k.startswith(GENERATOR_PREFIX)}
+        write_models(out, last, self.average,
+                     lambda tensors: multistyle_metadata(self.cfg, self.rep, tensors[CODE_TABLE], extra), log)
 
 
 def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, device: str = "auto",
@@ -225,14 +237,14 @@ def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, devic
         cpu += row["cpu_seconds"]
         rows.append(row)
         write_csv(out / "losses.csv", rows, FIELDS)
-        trainer.save(out / "checkpoint.safetensors", False, {"epochs_completed": trainer.epoch})
+        trainer.save(out / "checkpoint.safetensors", {"epochs_completed": trainer.epoch})
         if bar is None:
             log(f"epoch {trainer.epoch}/{cfg.epochs} " + " ".join(f"{k}={row[k]:.4g}" for k in FIELDS[1:] if k in row))
     if bar is not None:
         bar.close()
     final = {"train_seconds": spent, "train_cpu_seconds": cpu, "epochs": trainer.epoch,
              **{k: v for k, v in (rows[-1] if rows else {}).items() if k.startswith("val_")}}
-    trainer.save(out / "model.safetensors", True, {"epochs_completed": trainer.epoch, "metrics": final})
+    trainer.save_models(out, {"epochs_completed": trainer.epoch, "metrics": final}, log)
     (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
     log(f"done: {trainer.epoch} epochs in {spent / 60:.1f} min ({cpu / 60:.1f} CPU min); model at "
         f"{out / 'model.safetensors'}")
