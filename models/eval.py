@@ -174,7 +174,7 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
 
 
 def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_action: list[np.ndarray],
-               actions_true: list[int], target: int, styles: list[str]) -> dict:
+               actions_true: list[int], target: int, styles: list[str], actions: list[str]) -> dict:
     jin = np.concatenate([c["jerk_in"] for c in per_clip])
     jout = np.concatenate([c["jerk_out"] for c in per_clip])
     g_in, g_out = M.group_means(jin), M.group_means(jout)
@@ -190,6 +190,7 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "judged_target": float(np.mean(pred == target)) if len(pred) else float("nan"),
         "judged_as": {s: float(np.mean(pred == k)) for k, s in enumerate(styles)} if len(pred) else {},
         "action_kept": float(np.mean(act == truth)) if len(act) else float("nan"),
+        "action_taken_as": {a: float(np.mean(act == k)) for k, a in enumerate(actions)} if len(act) else {},
         "jerk_ratio": {g: g_out[g] / max(g_in[g], 1e-12) for g in g_in},
         "jerk_cm_per_frame3": g_out,
         "slide_cm_per_frame": float(s_out.mean()) if s_out.size else float("nan"),
@@ -321,11 +322,12 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                 masks.append(mask)
                 if setting == "stream":
                     outputs_for_plot.setdefault(variant.name, []).append((res, out_roots))
-            summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles), "per_action": {}}
+            summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles, actions), "per_action": {}}
             for a in sorted(set(act_idx)):
                 sel = [i for i, x in enumerate(act_idx) if x == a]
                 summary["per_action"][actions[a]] = _summarise([per_clip[i] for i in sel], [preds[i] for i in sel],
-                                                               [acts[i] for i in sel], [a] * len(sel), target_k, styles)
+                                                               [acts[i] for i in sel], [a] * len(sel), target_k, styles,
+                                                               actions)
             f = np.concatenate(feats)
             summary["overall"]["fmd"] = M.frechet_distance(f, feats_target) if len(f) > 1 else float("nan")
             summary["overall"]["seam_ratio"] = seam_ratio(ds, masks)

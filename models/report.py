@@ -100,6 +100,12 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                 o = r["stream"]["per_action"][a]
                 cells.append(fmt(o["jerk_ratio"]["all"] if key is None else o[key]))
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    for name in ("input", "proposed"):
+        lines += ["", f"## What the action judge took each action's windows for, stream, `{name}`", "",
+                  "| action | " + " | ".join(actions) + " |", "|---|" + "---|" * len(actions)]
+        for a in actions:
+            row = res[name]["stream"]["per_action"][a].get("action_taken_as", {})
+            lines.append(f"| {a} | " + " | ".join(_pct(row[b]) if b in row else "-" for b in actions) + " |")
     lines += ["", f"## Real motion: jerk of real {tgt} clips over real {src} clips of the same action", "",
               "| action | all | hands | feet |", "|---|---|---|---|"]
     for a, g in m["real_target_jerk_ratio"].items():

@@ -105,11 +105,14 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
                  "--threads", "1"]) == 0
     report = (tmp_path / "report.md").read_text()
     for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
-                    "Per action, stream",
+                    "Per action, stream", "What the action judge took each action's windows for",
                     "What the windows were taken for", "Real motion: jerk", "Seams"):
         assert section in report
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     results = metrics["results"]
+    for action, row in results["input"]["stream"]["per_action"].items():  # a confusion row per action
+        assert sum(row["action_taken_as"].values()) == pytest.approx(1.0)
+        assert row["action_taken_as"][action] == pytest.approx(row["action_kept"])
     assert {"input", "posture", "again", "proposed"} <= set(results)
     # the input scores its own values: the instrument's zero point
     live_input = results["input"]["stream"]["overall"]
