@@ -129,8 +129,6 @@ def run_train_multistyle(args) -> int:
     from .multistyle import MultiStyleConfig
     from .train_multistyle import MultiStyleTrainConfig, load_all_styles, train_multistyle
 
-    if args.resume:
-        raise UserError("--resume is not available for --styles all yet; start the run again in a new --out folder")
     if not args.lambda_identity >= 0:
         raise UserError(f"--lambda-identity must be 0 or more, got {args.lambda_identity:g}")
     try:
@@ -142,7 +140,8 @@ def run_train_multistyle(args) -> int:
                                 ema=args.ema,
                                 **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch))
     train, val = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
-    train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress)
+    train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress,
+                     resume=args.resume)
     return 0
 
 

@@ -290,44 +290,59 @@ class Trainer:
     def save(self, out: Path, metrics: dict | None = None) -> None:
         meta = model_metadata(self.cfg, self.rep, {"epochs_completed": self.epoch, "metrics": metrics or {}})
         ckpt.save_checkpoint(out / "checkpoint.safetensors", self.model_tensors(), meta)
-        state, layout = {}, {}
-        for name, opt in (("opt_g", self.opt_g), ("opt_d", self.opt_d)):
-            sd = opt.state_dict()
-            layout[name] = {"param_groups": sd["param_groups"]}
-            for pid, s in sd["state"].items():
-                for k, v in s.items():
-                    state[f"{name}.{pid}.{k}"] = v.reshape(1) if v.dim() == 0 else v
-        if self.average is not None:
-            state.update(self.average.tensors(AVERAGE_PREFIX))
-            meta["average_updates"] = self.average.updates
-        ckpt.save_checkpoint(out / "train_state.safetensors", state,
-                             {**meta, "optimisers": layout, "config": self.cfg.to_dict()})
+        write_train_state(out, self, meta)
 
     def load_state(self, out: Path) -> None:
-        import torch
+        read_train_state(out, self, TrainConfig, ("G_", "D_"))
 
-        tensors, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
-        sd = ckpt.check_shapes(out / "checkpoint.safetensors", self.model, tensors, ("G_", "D_"))
-        self.model.load_state_dict(sd)
-        st, smeta = ckpt.read_checkpoint(out / "train_state.safetensors")
-        saved = TrainConfig.from_dict(smeta["config"]).to_dict()
-        mine = self.cfg.to_dict()
-        changed = sorted(k for k in mine if k not in ("epochs",) and saved.get(k) != mine[k])
-        if changed:
-            raise UserError(f"cannot resume from {out}: the run used different settings ({', '.join(changed)}); "
-                            f"use the same options or a new --out folder")
-        for name, opt in (("opt_g", self.opt_g), ("opt_d", self.opt_d)):
-            state: dict = {}
-            prefix = f"{name}."
-            for k, v in st.items():
-                if k.startswith(prefix):
-                    pid, key = k[len(prefix):].split(".", 1)
-                    t = torch.from_numpy(np.array(v))
-                    state.setdefault(int(pid), {})[key] = t.reshape(()) if key == "step" else t
-            opt.load_state_dict({"state": state, "param_groups": smeta["optimisers"][name]["param_groups"]})
-        self.epoch = int(smeta["epochs_completed"])
-        if self.average is not None:
-            self.average.load(st, smeta.get("average_updates", 0), AVERAGE_PREFIX)
+
+OPTIMISERS = ("opt_g", "opt_d")  # the trainers' attribute names
+
+
+def write_train_state(out: Path, trainer, meta: dict) -> None:
+    """``out/train_state.safetensors``: what ``--resume`` needs beyond the weights in
+    ``checkpoint.safetensors``: both optimisers' moments, the weight average and the
+    settings (``trainer`` has ``opt_g``, ``opt_d``, ``average`` and ``cfg``)."""
+    state, layout = {}, {}
+    for name in OPTIMISERS:
+        sd = getattr(trainer, name).state_dict()
+        layout[name] = {"param_groups": sd["param_groups"]}
+        for pid, s in sd["state"].items():
+            for k, v in s.items():
+                state[f"{name}.{pid}.{k}"] = v.reshape(1) if v.dim() == 0 else v
+    meta = {**meta, "optimisers": layout, "config": trainer.cfg.to_dict()}
+    if trainer.average is not None:
+        state.update(trainer.average.tensors(AVERAGE_PREFIX))
+        meta["average_updates"] = trainer.average.updates
+    ckpt.save_checkpoint(out / "train_state.safetensors", state, meta)
+
+
+def read_train_state(out: Path, trainer, config_type, prefixes: tuple[str, ...]) -> None:
+    """Restore ``trainer`` from ``out`` (weights under ``prefixes``, optimisers, average,
+    epoch), refusing in one sentence a run whose settings (bar the epochs) differ."""
+    import torch
+
+    tensors, _ = ckpt.read_checkpoint(out / "checkpoint.safetensors")
+    trainer.model.load_state_dict(ckpt.check_shapes(out / "checkpoint.safetensors", trainer.model, tensors, prefixes))
+    st, smeta = ckpt.read_checkpoint(out / "train_state.safetensors")
+    saved = config_type.from_dict(smeta["config"]).to_dict()
+    mine = trainer.cfg.to_dict()
+    changed = sorted(k for k in mine if k not in ("epochs",) and saved.get(k) != mine[k])
+    if changed:
+        raise UserError(f"cannot resume from {out}: the run used different settings ({', '.join(changed)}); "
+                        f"use the same options or a new --out folder")
+    for name in OPTIMISERS:
+        state: dict = {}
+        prefix = f"{name}."
+        for k, v in st.items():
+            if k.startswith(prefix):
+                pid, key = k[len(prefix):].split(".", 1)
+                t = torch.from_numpy(np.array(v))
+                state.setdefault(int(pid), {})[key] = t.reshape(()) if key == "step" else t
+        getattr(trainer, name).load_state_dict({"state": state, "param_groups": smeta["optimisers"][name]["param_groups"]})
+    trainer.epoch = int(smeta["epochs_completed"])
+    if trainer.average is not None:
+        trainer.average.load(st, smeta.get("average_updates", 0), AVERAGE_PREFIX)
 
 
 def timed_epoch(trainer, bar=None) -> dict:
@@ -372,35 +387,28 @@ def _read_csv(path: Path) -> list[dict]:
                 for r in csv.DictReader(f)]
 
 
-def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None, resume: bool = False,
-          device: str = "auto", progress: bool = True, log=print, next_a=None, next_b=None) -> Trainer:
-    """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    reference = None
-    if resume:
-        if not (out / "checkpoint.safetensors").exists():
-            raise UserError(f"nothing to resume in {out}: no checkpoint.safetensors there; drop --resume to "
-                            f"start a new run")
-        _, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
-        ref = meta["representation"].get("reference")
-        reference = None if ref is None else np.asarray(ref, dtype=np.float64)
-    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b)
-    trainer.determinism.log = log
+def check_resumable(out: Path) -> None:
+    if not (out / "checkpoint.safetensors").exists() or not (out / "train_state.safetensors").exists():
+        raise UserError(f"nothing to resume in {out}: no checkpoint.safetensors and train_state.safetensors "
+                        f"there; drop --resume to start a new run")
+
+
+def run_epochs(trainer, out: Path, steps_per_epoch: int, fields, resume: bool, progress: bool, log) -> dict:
+    """The epoch loop both trainers share (``trainer``: ``cfg``, ``epoch``, ``run_epoch``,
+    ``validate``, ``save(out, metrics)``, ``load_state(out)``): resume where a run stopped,
+    one CSV row and one checkpoint per epoch; returns the final metrics."""
+    cfg = trainer.cfg
     rows: list[dict] = []
     if resume:
+        check_resumable(out)
         trainer.load_state(out)
         rows = [r for r in _read_csv(out / "losses.csv") if int(r["epoch"]) <= trainer.epoch]
         log(f"resuming from epoch {trainer.epoch}")
-    g = count_parameters(trainer.model.G_a2b)
-    log(f"training {cfg.style_a}<->{cfg.style_b} ({cfg.loss}, {cfg.representation}) on {trainer.device}: "
-        f"{len(words_a)}/{len(words_b)} training words, {cfg.words_per_epoch} per epoch, generator {g} parameters")
-    steps = math.ceil(cfg.words_per_epoch / cfg.batch_size)
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=steps * (cfg.epochs - trainer.epoch), unit="step", dynamic_ncols=True)
+        bar = tqdm(total=steps_per_epoch * (cfg.epochs - trainer.epoch), unit="step", dynamic_ncols=True)
     spent = sum(float(r.get("seconds") or 0) for r in rows)
     cpu = sum(float(r.get("cpu_seconds") or 0) for r in rows)
     while trainer.epoch < cfg.epochs:
@@ -410,19 +418,44 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
         spent += row["seconds"]
         cpu += row["cpu_seconds"]
         rows.append(row)
-        write_csv(out / "losses.csv", rows)
-        trainer.save(out, {"train_seconds": spent, "train_cpu_seconds": cpu, **{k: v for k, v in row.items() if k.startswith("val_")}})
+        write_csv(out / "losses.csv", rows, fields)
+        trainer.save(out, {"train_seconds": spent, "train_cpu_seconds": cpu,
+                           **{k: v for k, v in row.items() if k.startswith("val_")}})
         if bar is None:
-            log(f"epoch {trainer.epoch}/{cfg.epochs} " + " ".join(f"{k}={row[k]:.4g}" for k in CSV_FIELDS[1:] if k in row))
+            log(f"epoch {trainer.epoch}/{cfg.epochs} " + " ".join(f"{k}={row[k]:.4g}" for k in fields[1:] if k in row))
     if bar is not None:
         bar.close()
-    final = {"train_seconds": spent, "train_cpu_seconds": cpu, "epochs": trainer.epoch,
-             **{k: v for k, v in (rows[-1] if rows else {}).items() if k.startswith("val_")}}
+    return {"train_seconds": spent, "train_cpu_seconds": cpu, "epochs": trainer.epoch,
+            **{k: v for k, v in (rows[-1] if rows else {}).items() if k.startswith("val_")}}
+
+
+def finish(out: Path, cfg, final: dict, log) -> None:
+    (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
+    log(f"done: {final['epochs']} epochs in {final['train_seconds'] / 60:.1f} min "
+        f"({final['train_cpu_seconds'] / 60:.1f} CPU min); model at {out / 'model.safetensors'}")
+
+
+def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None, resume: bool = False,
+          device: str = "auto", progress: bool = True, log=print, next_a=None, next_b=None) -> Trainer:
+    """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    reference = None
+    if resume:
+        check_resumable(out)
+        _, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
+        ref = meta["representation"].get("reference")
+        reference = None if ref is None else np.asarray(ref, dtype=np.float64)
+    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b)
+    trainer.determinism.log = log
+    g = count_parameters(trainer.model.G_a2b)
+    log(f"training {cfg.style_a}<->{cfg.style_b} ({cfg.loss}, {cfg.representation}) on {trainer.device}: "
+        f"{len(words_a)}/{len(words_b)} training words, {cfg.words_per_epoch} per epoch, generator {g} parameters")
+    final = run_epochs(trainer, out, math.ceil(cfg.words_per_epoch / cfg.batch_size), CSV_FIELDS, resume, progress,
+                       log)
     meta = model_metadata(cfg, trainer.rep, {"epochs_completed": trainer.epoch, "metrics": final})
     write_models(out, trainer.model_tensors(generators_only=True), trainer.average, lambda _: meta, log)
-    (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
-    log(f"done: {trainer.epoch} epochs in {spent / 60:.1f} min ({cpu / 60:.1f} CPU min); model at "
-        f"{out / 'model.safetensors'}")
+    finish(out, cfg, final, log)
     return trainer
 
 

@@ -21,7 +21,6 @@ discriminator, rewritten every epoch), ``losses.csv`` (one row per epoch),
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -40,7 +39,8 @@ from .multistyle import MultiStyleConfig, MultiStyleGAN
 from .networks import count_parameters, to_channels
 from .representation import get_representation
 from .styles import STYLES
-from .train import TrainConfig, shared_metadata, timed_epoch, write_csv, write_models
+from .train import (TrainConfig, finish, read_train_state, run_epochs, shared_metadata, write_models,
+                    write_train_state)
 
 KIND = "multistyle"
 GENERATOR_PREFIX = "G."
@@ -64,6 +64,12 @@ class MultiStyleTrainConfig(TrainConfig):
         for unused in ("style_a", "style_b", "loss", "lambda_coherence", "lambda_gram", "lambda_overlap"):
             d.pop(unused)
         return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "MultiStyleTrainConfig":
+        d = dict(d)
+        d["network"] = MultiStyleConfig(**d.get("network", {}))
+        return cls(**d)
 
 
 def build_multistyle(cfg, reference=None):
@@ -202,10 +208,16 @@ class MultiStyleTrainer:
                 dif.append(L.diff_loss(rec, x).item())
         return {"val_cycle": float(np.mean(cyc)), "val_diff": float(np.mean(dif))}
 
-    def save(self, path: Path, extra: dict) -> None:
-        """Generator and discriminator, to go on from (the last weights)."""
+    def save(self, out: Path, metrics: dict) -> None:
+        """Generator and discriminator (the last weights) and the optimisers, for --resume."""
         sd = self.model.state_dict()
-        ckpt.save_checkpoint(path, sd, multistyle_metadata(self.cfg, self.rep, sd[CODE_TABLE], extra))
+        meta = multistyle_metadata(self.cfg, self.rep, sd[CODE_TABLE], {"epochs_completed": self.epoch,
+                                                                        "metrics": metrics})
+        ckpt.save_checkpoint(out / "checkpoint.safetensors", sd, meta)
+        write_train_state(out, self, meta)
+
+    def load_state(self, out: Path) -> None:
+        read_train_state(out, self, MultiStyleTrainConfig, ("G.", "D."))
 
     def save_models(self, out: Path, extra: dict, log=print) -> None:
         """The generator alone: ``model.safetensors`` (and ``model-raw`` with ``--ema``); the
@@ -216,7 +228,8 @@ class MultiStyleTrainer:
 
 
 def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, device: str = "auto",
-                     progress: bool = True, log=print) -> MultiStyleTrainer:
+                     progress: bool = True, log=print, resume: bool = False) -> MultiStyleTrainer:
+    """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     trainer = MultiStyleTrainer(cfg, words, val, device)
@@ -225,29 +238,9 @@ def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, devic
     log(f"training all {len(STYLES)} styles in one model on {trainer.device}: "
         + ", ".join(f"{s} {len(w)}" for s, w in zip(STYLES, trainer.words))
         + f" training words, {cfg.words_per_epoch} per epoch, generator {count_parameters(trainer.model.G)} parameters")
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=steps * cfg.epochs, unit="step", dynamic_ncols=True)
-    rows, spent, cpu = [], 0.0, 0.0
-    while trainer.epoch < cfg.epochs:
-        row = timed_epoch(trainer, bar)
-        spent += row["seconds"]
-        cpu += row["cpu_seconds"]
-        rows.append(row)
-        write_csv(out / "losses.csv", rows, FIELDS)
-        trainer.save(out / "checkpoint.safetensors", {"epochs_completed": trainer.epoch})
-        if bar is None:
-            log(f"epoch {trainer.epoch}/{cfg.epochs} " + " ".join(f"{k}={row[k]:.4g}" for k in FIELDS[1:] if k in row))
-    if bar is not None:
-        bar.close()
-    final = {"train_seconds": spent, "train_cpu_seconds": cpu, "epochs": trainer.epoch,
-             **{k: v for k, v in (rows[-1] if rows else {}).items() if k.startswith("val_")}}
+    final = run_epochs(trainer, out, steps, FIELDS, resume, progress, log)
     trainer.save_models(out, {"epochs_completed": trainer.epoch, "metrics": final}, log)
-    (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
-    log(f"done: {trainer.epoch} epochs in {spent / 60:.1f} min ({cpu / 60:.1f} CPU min); model at "
-        f"{out / 'model.safetensors'}")
+    finish(out, cfg, final, log)
     return trainer
 
 

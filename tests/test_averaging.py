@@ -69,14 +69,38 @@ def test_averaging_leaves_training_alone_and_ships_the_average(tmp_path):
     assert "moving average" in meta["weights"] and "last" in raw_meta["weights"]
 
 
-def test_a_resumed_run_continues_the_average_where_it_stopped(tmp_path):
+def _pair(cfg_kw, out, resume=False):
     a, b = synthetic_words(8, 1), synthetic_words(8, 2)
-    train(_tiny_cfg(epochs=3, ema=0.9), tmp_path / "straight", a, b, **QUIET)
-    train(_tiny_cfg(epochs=2, ema=0.9), tmp_path / "resumed", a, b, **QUIET)
-    train(_tiny_cfg(epochs=3, ema=0.9), tmp_path / "resumed", a, b, resume=True, **QUIET)
-    straight, _ = ckpt.read_checkpoint(tmp_path / "straight" / "model.safetensors")
-    resumed, _ = ckpt.read_checkpoint(tmp_path / "resumed" / "model.safetensors")
-    assert all((straight[k] == resumed[k]).all() for k in straight)
+    train(_tiny_cfg(**cfg_kw), out, a, b, resume=resume, **QUIET)
+
+
+def _multistyle(cfg_kw, out, resume=False):
+    train_multistyle(_tiny_multistyle_cfg(**cfg_kw), out, _tiny_words(), resume=resume, **QUIET)
+
+
+@pytest.mark.parametrize("kind", [_pair, _multistyle], ids=["pair", "multistyle"])
+def test_a_resumed_run_ends_where_a_straight_run_does_average_included(kind, tmp_path):
+    kind(dict(epochs=3, ema=0.9), tmp_path / "straight")
+    kind(dict(epochs=2, ema=0.9), tmp_path / "resumed")
+    kind(dict(epochs=3, ema=0.9), tmp_path / "resumed", resume=True)
+    for name in ("model", "model-raw"):
+        straight, _ = ckpt.read_checkpoint(tmp_path / "straight" / f"{name}.safetensors")
+        resumed, meta = ckpt.read_checkpoint(tmp_path / "resumed" / f"{name}.safetensors")
+        assert set(straight) == set(resumed) and all((straight[k] == resumed[k]).all() for k in straight)
+    assert meta["epochs_completed"] == 3
+    rows = (tmp_path / "resumed" / "losses.csv").read_text().strip().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3"]
+
+
+@pytest.mark.parametrize("kind", [_pair, _multistyle], ids=["pair", "multistyle"])
+def test_resume_refuses_changed_settings_or_an_empty_folder_in_one_sentence(kind, tmp_path):
+    from stylecast.motion.errors import UserError
+
+    with pytest.raises(UserError, match="nothing to resume in .*; drop --resume"):
+        kind(dict(epochs=2), tmp_path / "empty", resume=True)
+    kind(dict(epochs=1, ema=0.9), tmp_path / "run")
+    with pytest.raises(UserError, match=r"different settings \(ema\); use the same options"):
+        kind(dict(epochs=2, ema=0.5), tmp_path / "run", resume=True)
 
 
 def test_the_multistyle_json_carries_the_code_table_of_the_weights_beside_it(tmp_path):
