@@ -13,10 +13,11 @@ One epoch = ``words_per_epoch`` words, an equal share from every style, drawn wi
 replacement with a generator seeded by (seed, epoch); targets come from the same
 generator. Deterministic on the CPU for a seed.
 
-Files written to the output folder: ``checkpoint.safetensors`` (generator and
-discriminator, rewritten every epoch), ``losses.csv`` (one row per epoch),
-``model.safetensors``/``.json`` (the generator only: the shippable model),
-``config.json``.
+Files written to the output folder, as the pair trainer writes them: ``checkpoint``
+and ``train_state.safetensors`` (generator, discriminator, optimisers and the weight
+average, rewritten every epoch, for ``--resume``), ``losses.csv`` (one row per epoch),
+``model.safetensors``/``.json`` (the generator only: the shippable model; with ``--ema``
+the weight average, the last weights in ``model-raw``), ``config.json``.
 """
 
 from __future__ import annotations
