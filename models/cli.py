@@ -38,9 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-identity", type=float, default=0.0,
                    help="--styles all: weight of |G(x, own style) - x| (default 0 = off)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--ema", type=float, default=0.0, metavar="DECAY",
-                   help="ship the generators' weight average over training (e.g. 0.999; the last weights go to "
-                        "model-raw.safetensors); 0 = the last weights (default)")
+    p.add_argument("--ema", type=float, metavar="DECAY",
+                   help="the model written is the generators' weight average over training with this decay "
+                        "(default 0.999; the last weights go to model-raw.safetensors); 0 = the last weights")
     p.add_argument("--representation", choices=("euler", "6d"), default="euler")
     p.add_argument("--knots", type=int,
                    help="control points of the smooth (cubic B-spline) correction over a word; 0 = a free "
@@ -111,10 +111,10 @@ def _threads(n):
         torch.set_num_threads(n)
 
 
-def _check_ema(decay: float) -> None:
+def _check_ema(decay: float | None) -> None:
     from stylecast.motion.errors import UserError
 
-    if not (decay == 0 or 0 < decay < 1):
+    if decay is not None and not (decay == 0 or 0 < decay < 1):
         raise UserError(f"--ema must be 0 (off) or a decay between 0 and 1 such as 0.999, got {decay:g}")
 
 
@@ -137,7 +137,7 @@ def run_train_multistyle(args) -> int:
         raise UserError(f"--knots: {exc}") from None
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
                                 max_words=args.max_words, lambda_identity=args.lambda_identity, network=net,
-                                ema=args.ema,
+                                **_given(ema=args.ema),
                                 **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch))
     train, val = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
     train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress,
@@ -159,7 +159,7 @@ def run_train(args) -> int:
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
-                      lambda_overlap=args.lambda_overlap, ema=args.ema)
+                      lambda_overlap=args.lambda_overlap, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
     if args.style_a == args.style_b:
