@@ -12,8 +12,8 @@ Files written to the output folder:
   checkpoint.safetensors/.json  all four networks + metadata, rewritten every epoch
   train_state.safetensors/.json optimiser moments, the weight average and the epoch, for --resume
   losses.csv                    one row of mean losses (and validation figures) per epoch
-  model.safetensors/.json       the two generators only: the shippable model (with --ema, their
-                                weight average; the last weights in model-raw.safetensors)
+  model.safetensors/.json       the two generators only: the shippable model (their weight
+                                average unless --ema 0; the last weights in model-raw.safetensors)
 
 Deterministic on the CPU for a seed: weights come from torch.manual_seed(seed), batches
 from numpy's default_rng((seed, epoch)), torch.use_deterministic_algorithms(True). On

@@ -16,8 +16,8 @@ generator. Deterministic on the CPU for a seed.
 Files written to the output folder, as the pair trainer writes them: ``checkpoint``
 and ``train_state.safetensors`` (generator, discriminator, optimisers and the weight
 average, rewritten every epoch, for ``--resume``), ``losses.csv`` (one row per epoch),
-``model.safetensors``/``.json`` (the generator only: the shippable model; with ``--ema``
-the weight average, the last weights in ``model-raw``), ``config.json``.
+``model.safetensors``/``.json`` (the generator only: the shippable model, the weight
+average unless ``--ema 0``; the last weights in ``model-raw``), ``config.json``.
 """
 
 from __future__ import annotations
@@ -221,7 +221,7 @@ class MultiStyleTrainer:
         read_train_state(out, self, MultiStyleTrainConfig, ("G.", "D."))
 
     def save_models(self, out: Path, extra: dict, log=print) -> None:
-        """The generator alone: ``model.safetensors`` (and ``model-raw`` with ``--ema``); the
+        """The generator alone: ``model.safetensors`` (and ``model-raw`` unless ``--ema 0``); the
         code table is in the JSON too, so each file's is written from the weights it holds."""
         last = {k: v for k, v in self.model.state_dict().items() if k.startswith(GENERATOR_PREFIX)}
         write_models(out, last, self.average,
