@@ -74,10 +74,10 @@ class TrainConfig:
     lambda_gram: float = L.LAMBDA_GRAM
     lambda_overlap: float = 0.0  # overlapping words agree (losses.overlap_loss); 0 = off
     # The model written is the generators' weight average (averaging.py) with this decay; 0 =
-    # the last weights. Measured over three seeds of the pair recipe (MODEL_CARD.md), the
+    # the last weights. Measured over four seeds of the pair recipe (MODEL_CARD.md), the
     # average against each run's own last weights: jerk 1.08-1.14 -> 1.01-1.02, planted-foot
-    # slide 1.40-1.41 -> 1.10-1.30, timing sync and FMD better in every run, judged exhausted
-    # 64/55/78 -> 68/84/69 %.
+    # slide 1.32-1.41 -> 1.10-1.30, timing sync and FMD better in every run, judged exhausted
+    # 64/55/78/77 -> 68/84/69/75 %.
     ema: float = 0.999
     network: NetworkConfig = field(default_factory=NetworkConfig)
 
