@@ -1,7 +1,7 @@
 """Daemon benchmarks: latency, capacity, CPU cost, seam ratio. Prints tables; not a test.
 
     python bench/bench_daemon.py                # everything (a few minutes)
-    python bench/bench_daemon.py latency seams  # a subset: latency capacity cpu seams presets
+    python bench/bench_daemon.py latency seams  # a subset: latency capacity cpu seams presets footlock
     python bench/bench_daemon.py presets 8 10   # presets only, 8 performers, 10 s per run
     python bench/bench_daemon.py capacity 5     # capacity only, 5 s per run
 
@@ -21,6 +21,11 @@ forward the same bytes) fed the daemon's own packets at the same rate.
 Presets (issue 12): N performers (default 8) under each --latency preset, against the
 pre-issue-12 behaviour in the same run (hop 15, delay 15, no model timing, no slack
 planning): loopback latency p50/p99/max, late frames, dropped ticks, the final delay.
+
+Foot lock (issue 12): CPU per frame of ``FootLock.push`` + ``apply`` on a shared clip,
+one frame per call as the daemon runs it (each performer, each tick) against the same
+frames in one call (as ``restyle`` runs it): the gap is what vectorising the lock across
+performers could win. Median of 5 runs, for ``--feet input`` and ``stance``.
 
 Seams: the paper's d_t (Euclidean distance of a bone's Euler angles, scaled to [-1, 1],
 between consecutive frames), mean at frames where the served word changes over mean
@@ -437,6 +442,36 @@ def bench_seams(model):
           rows)
 
 
+def bench_footlock(motion, runs=5):
+    from stylecast.motion.footlock import FEET, FootLock
+
+    clip = motion  # already on the output grid (base_motion)
+    rotations, roots = clip.rotations.astype(np.float64), clip.root_positions.astype(np.float64)
+    n = len(roots)
+
+    def per_frame(feet, one_call):
+        lock = FootLock.for_stream(clip.skeleton, 5, FEET[feet])
+        c0 = time.process_time()
+        if one_call:
+            lock.push(roots, rotations)
+            lock.apply(0, roots[:n - lock.ramp], rotations[:n - lock.ramp], rotations[:n - lock.ramp])
+        else:
+            for t in range(n):
+                lock.push(roots[t:t + 1], rotations[t:t + 1])
+                k = t - lock.ramp
+                if k >= 0:
+                    lock.apply(k, roots[k:k + 1], rotations[k:k + 1], rotations[k:k + 1])
+        return (time.process_time() - c0) / n * 1e3
+
+    rows = []
+    for feet in ("input", "stance"):
+        each = float(np.median([per_frame(feet, False) for _ in range(runs)]))
+        whole = float(np.median([per_frame(feet, True) for _ in range(runs)]))
+        rows.append((feet, f"{each:.3f}", f"{whole:.3f}", f"{each / whole:.0f}x"))
+    table(f"Foot lock CPU ms per frame ({n} frames, median of {runs}; the input as the restyle)",
+          ["--feet", "one frame per call (daemon)", "all frames in one call (restyle)", "ratio"], rows)
+
+
 def ReplaySourceRotations(motion):  # noqa: N802 (reads like the source it stands for)
     """The rotations the daemon's sessions see: the motion on the 60 Hz output grid."""
     from stylecast.motion.resample import resample
@@ -466,6 +501,8 @@ def main(argv):
         bench_presets(model, motion, int(numbers[0]) if numbers else 8, numbers[1] if len(numbers) > 1 else 8.0)
     if "seams" in which:
         bench_seams(model)
+    if "footlock" in which:
+        bench_footlock(motion)
 
 
 if __name__ == "__main__":
