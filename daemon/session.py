@@ -69,8 +69,7 @@ class Session:
         self.blender = SeamBlender(settings, len(skeleton), phase=self.phase)
         # Planted feet of the input stay planted in the output (after the blender, as
         # offline ``restyle`` does); it looks ahead into the ``delay`` frames buffered.
-        self.feet = FootLock.for_stream(skeleton, settings.delay, contacts,
-                                        fade_in=settings.word_length + settings.crossfade_frames)
+        self.feet = FootLock.for_stream(skeleton, settings.delay, contacts, fade_in=settings.first_fade_end)
         self.smoothing = CorrectionFilter(len(skeleton), settings.correction_tau)
         self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
         self.frames_in = 0

@@ -87,7 +87,7 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
         roots = np.asarray(roots, dtype=np.float64)[idx]
         if skeleton is not None:
             feet = FootLock.for_stream(skeleton, settings.delay, contacts or ContactSettings(),
-                                       fade_in=settings.word_length + settings.crossfade_frames)
+                                       fade_in=settings.first_fade_end)
     out = restyle_stream(padded, restyle_words, settings, intensity=intensity, roots=roots, feet=feet)
     real = slice(before, before + T)
     return Restyled(out.rotations[real], None if out.roots is None else out.roots[real])

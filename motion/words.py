@@ -118,6 +118,13 @@ class BlendSettings:
             self.decay_frames = float(min(max(self.hop, 4), 15))
         self.crossfade_frames = max(1, int(self.crossfade_frames))
 
+    @property
+    def first_fade_end(self) -> int:
+        """The stream frame by which its first fade from pass-through to the restyle has
+        ended: the first word, then the crossfade (a staggered ``phase`` delays the first
+        word by less than a hop, which the foot lock's stance, its one user, can spare)."""
+        return self.word_length + self.crossfade_frames
+
 
 def _spring_at(offset: np.ndarray, c2: np.ndarray, omega: float, k) -> np.ndarray:
     """A critically damped spring pulling ``offset`` to zero, k frames on, in closed form:
