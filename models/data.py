@@ -28,10 +28,10 @@ import numpy as np
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import RETARGET_VERSION
+from stylecast.motion.words import WORD_LENGTH  # the one definition of a word's length
 
 from . import representation as R
 
-WORD_LENGTH = 60
 VAL_FRACTION = 0.15
 CACHE_VERSION = f"h{RETARGET_VERSION}"  # follows the retargeting; bump the suffix if resampling changes
 FILE_RE = re.compile(r"^dataset-2_(?P<action>.+)_(?P<style>[a-z]+)_(?P<take>\d+)\.bvh(?:\.gz)?$")

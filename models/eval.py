@@ -44,7 +44,7 @@ import numpy as np
 from stylecast.motion.errors import UserError
 from stylecast.motion.footlock import AUTO_FEET, FEET, ContactSettings, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES
-from stylecast.motion.words import DEFAULT_HOP
+from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD
 
 from . import data as D
 from . import metrics as M
@@ -54,7 +54,6 @@ from .judges import Judges, judge_windows, training_motions
 from .restyle import padding, restyle_rotations
 from .restyler import Restyler
 
-WORD = 60
 SHIPPED_V1 = "normal2exhausted-v1"
 BASELINE = "normal2exhausted-coherence"
 # (name, rendered as a stream that starts with the clip, frames dropped before measuring).

@@ -22,9 +22,7 @@ import numpy as np
 from stylecast.motion import rotations as rot
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
-from stylecast.motion.words import DEFAULT_HOP, Restyled
-
-WORD_LENGTH = 60
+from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH, Restyled
 
 
 def mirror_indices(num_frames: int, before: int, after: int) -> np.ndarray:

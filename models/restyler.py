@@ -22,14 +22,13 @@ import numpy as np
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
+from stylecast.motion.words import WORD_LENGTH  # the one definition of a word's length
 
 from . import checkpoint as ckpt
 from . import representation as R
 from .device import pick_device
 
 MAX_NETWORK_SIZE = 1 << 16  # no width, depth or kernel of a live restyler comes near this
-
-WORD_LENGTH = 60
 
 
 class Restyler:
