@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--words-per-epoch", type=_positive_int,
                    help="words drawn per epoch: of each style for a pair (default 1024), of all styles "
                         "together for --styles all (default 2048)")
+    p.add_argument("--generator", default="temporal", metavar="temporal|graph",
+                   help="--styles all: convolutions over time only (temporal, default) or over the skeleton's "
+                        "bone graph as well (graph, seed 003)")
     p.add_argument("--lambda-identity", type=float, default=0.0,
                    help="--styles all: weight of |G(x, own style) - x| (default 0 = off)")
     p.add_argument("--seed", type=int, default=0)
@@ -118,6 +121,17 @@ def _check_ema(decay: float | None) -> None:
         raise UserError(f"--ema must be 0 (off) or a decay between 0 and 1 such as 0.999, got {decay:g}")
 
 
+def _check_generator(name: str, styles: str) -> None:
+    from stylecast.motion.errors import UserError
+
+    from .multistyle import GENERATORS
+
+    if name not in GENERATORS:
+        raise UserError(f"--generator {name!r} is not known; use one of {', '.join(GENERATORS)}")
+    if name != "temporal" and styles != "all":
+        raise UserError(f"--generator {name} is a multi-style generator; add --styles all")
+
+
 def _given(**options) -> dict:
     """The options given on the command line (None = not given: the config's default)."""
     return {k: v for k, v in options.items() if v is not None}
@@ -126,13 +140,13 @@ def _given(**options) -> dict:
 def run_train_multistyle(args) -> int:
     from stylecast.motion.errors import UserError
 
-    from .multistyle import MultiStyleConfig
+    from .multistyle import GENERATORS, MultiStyleConfig
     from .train_multistyle import MultiStyleTrainConfig, load_all_styles, train_multistyle
 
     if not args.lambda_identity >= 0:
         raise UserError(f"--lambda-identity must be 0 or more, got {args.lambda_identity:g}")
     try:
-        net = MultiStyleConfig() if args.knots is None else MultiStyleConfig(correction_knots=args.knots)
+        net = MultiStyleConfig(**GENERATORS[args.generator], **_given(correction_knots=args.knots))
     except ValueError as exc:
         raise UserError(f"--knots: {exc}") from None
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
@@ -152,6 +166,7 @@ def run_train(args) -> int:
     _threads(args.threads)
     _check_ema(args.ema)
     pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
+    _check_generator(args.generator, args.styles)
     if args.styles == "all":
         return run_train_multistyle(args)
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,

@@ -126,6 +126,17 @@ def smooth_projection(frames: int, knots: int) -> torch.Tensor:
     return torch.from_numpy((b @ np.linalg.solve(b.T @ b, b.T)).astype(np.float32))
 
 
+def apply_correction(x: torch.Tensor, delta: torch.Tensor, smooth: torch.Tensor | None, scale, combine) -> torch.Tensor:
+    """Every generator's last step: the raw correction (B, F, T) projected on the B-spline
+    (``smooth``, None = free), scaled by the intensity (``scale`` (B, 1, 1) or None) and put
+    on the input by the representation's ``combine``."""
+    if smooth is not None:
+        delta = delta @ smooth
+    if scale is not None:
+        delta = delta * scale
+    return combine(x, delta)
+
+
 class ResBlock(nn.Module):
     def __init__(self, ch: int, k: int):
         super().__init__()
@@ -178,12 +189,7 @@ class CorrectionGenerator(nn.Module):
         """The blocks' output -> the smooth correction, (optionally scaled) put on x."""
         y = y @ self.upsample
         y = self.act(self.fuse(torch.cat([y, skip], dim=1)))  # skip connection at full rate
-        delta = self.head(y)
-        if self.smooth is not None:
-            delta = delta @ self.smooth
-        if scale is not None:
-            delta = delta * scale
-        return self.combine(x, delta)
+        return apply_correction(x, self.head(y), self.smooth, scale, self.combine)
 
 
 class Generator(CorrectionGenerator):

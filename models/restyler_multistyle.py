@@ -42,7 +42,7 @@ class MultiStyleRestyler(Restyler):
 
     @classmethod
     def from_checkpoint(cls, path, tensors, meta, rep, device, **_) -> "MultiStyleRestyler":
-        from .multistyle import MultiStyleConfig, MultiStyleGenerator
+        from .multistyle import MultiStyleConfig, make_generator
 
         styles = meta["styles"]
         if not (isinstance(styles, list) and tuple(styles) == STYLES):
@@ -53,7 +53,7 @@ class MultiStyleRestyler(Restyler):
             raise UserError(f"checkpoint {path} has {cfg.num_styles} style codes for {len(STYLES)} styles; export "
                             f"it again with `stylecast train --styles all`")
         model = build_checked(path, {k[2:]: v for k, v in tensors.items() if k.startswith("G.")}, rep, cfg,
-                              lambda: MultiStyleGenerator(cfg, rep.combine), ("",))
+                              lambda: make_generator(cfg, rep.combine), ("",))
         model.to(device)
         return cls(model, rep, meta, path=path)
 

@@ -13,7 +13,7 @@ import torch
 
 from stylecast.cli import main
 from stylecast.models import checkpoint as ckpt
-from stylecast.models.multistyle import MultiStyleConfig, MultiStyleGenerator, StyleDiscriminator
+from stylecast.models.multistyle import MultiStyleConfig, StyleDiscriminator, make_generator
 from stylecast.models.representation import get_representation
 from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler
@@ -23,6 +23,9 @@ from stylecast.motion.errors import UserError
 from tests.test_models import synthetic_words
 
 TINY = MultiStyleConfig(g_hidden=16, g_blocks=1, d_hidden=8, code_dim=4)
+TINY_GRAPH = MultiStyleConfig(g_blocks=1, d_hidden=8, code_dim=4, graph_channels=4)  # models/graph.py
+# The properties every multi-style generator must have, checked on both kinds.
+each_generator = pytest.mark.parametrize("net", [TINY, TINY_GRAPH], ids=["temporal", "graph"])
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai"
 CLIP = SHARED / "dataset-2" / "data" / "dataset-2_walk_normal_001.bvh.gz"
 needs_data = pytest.mark.skipif(not CLIP.exists(), reason=f"the shared Bandai data is not at {SHARED}")
@@ -32,12 +35,12 @@ S = len(STYLES)
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
-def _generator(seed: int = 0, trained_like: bool = True) -> MultiStyleGenerator:
+def _generator(seed: int = 0, trained_like: bool = True, net: MultiStyleConfig = TINY) -> torch.nn.Module:
     """A tiny generator; ``trained_like``: its zero-initialised parts given random values, so
     the style code changes the output (as after training)."""
     torch.manual_seed(seed)
     rep = get_representation("euler")
-    g = MultiStyleGenerator(TINY, rep.combine)
+    g = make_generator(net, rep.combine)
     if trained_like:
         with torch.no_grad():
             for p in g.parameters():
@@ -61,8 +64,9 @@ def _tiny_cfg(**kw) -> MultiStyleTrainConfig:
 
 # --- the network ------------------------------------------------------------------------------
 
-def test_shapes_of_generator_and_discriminator():
-    g, x = _generator(), _x(3)
+@each_generator
+def test_shapes_of_generator_and_discriminator(net):
+    g, x = _generator(net=net), _x(3)
     w = torch.from_numpy(np.stack([one_hot(s) for s in ("elderly", "youthful", "active")])).float()
     assert g(x, w).shape == x.shape
     d = StyleDiscriminator(TINY)
@@ -74,15 +78,17 @@ def test_shapes_of_generator_and_discriminator():
     assert torch.equal(out[:, 0], torch.stack([heads[0, 0], heads[1, 3], heads[2, 6]]))
 
 
-def test_a_fresh_generator_is_the_identity_for_every_style_and_mix():
-    g, x = _generator(trained_like=False), _x(4)
+@each_generator
+def test_a_fresh_generator_is_the_identity_for_every_style_and_mix(net):
+    g, x = _generator(trained_like=False, net=net), _x(4)
     for w in (one_hot("elderly"), parse_mix("active:0.3,feminine:0.7")):
         y = g(x, torch.from_numpy(np.tile(w, (4, 1))).float())
         assert torch.allclose(y, x, atol=1e-6)
 
 
-def test_one_hot_mix_is_that_style_and_a_half_mix_lies_between():
-    g, x = _generator(), _x(2)
+@each_generator
+def test_one_hot_mix_is_that_style_and_a_half_mix_lies_between(net):
+    g, x = _generator(net=net), _x(2)
     e = torch.from_numpy(np.tile(one_hot("elderly"), (2, 1))).float()
     y = torch.from_numpy(np.tile(one_hot("youthful"), (2, 1))).float()
     via_mix = torch.from_numpy(np.tile(parse_mix("elderly:1,youthful:0"), (2, 1))).float()
@@ -94,8 +100,9 @@ def test_one_hot_mix_is_that_style_and_a_half_mix_lies_between():
     assert torch.allclose(g.codes(half)[0], (table[1] + table[6]) / 2, atol=1e-6)
 
 
-def test_intensity_scales_the_correction():
-    g, x = _generator(), _x(2)
+@each_generator
+def test_intensity_scales_the_correction(net):
+    g, x = _generator(net=net), _x(2)
     w = torch.from_numpy(np.tile(one_hot("elderly"), (2, 1))).float()
     assert torch.allclose(g(x, w, torch.zeros(2)), x, atol=1e-6)
     assert torch.allclose(g(x, w, torch.ones(2)), g(x, w), atol=1e-6)
@@ -103,8 +110,9 @@ def test_intensity_scales_the_correction():
     assert not torch.allclose(half, x, atol=1e-4) and not torch.allclose(half, g(x, w), atol=1e-4)
 
 
-def test_per_word_styles_in_one_batch_equal_separate_calls():
-    g, x = _generator(), _x(3)
+@each_generator
+def test_per_word_styles_in_one_batch_equal_separate_calls(net):
+    g, x = _generator(net=net), _x(3)
     mixes = [one_hot("elderly"), one_hot("youthful"), parse_mix("active:0.5,normal:0.5")]
     together = g(x, torch.from_numpy(np.stack(mixes)).float())
     for i, w in enumerate(mixes):

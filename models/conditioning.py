@@ -1,0 +1,35 @@
+"""How a style code conditions a generator (seed 001, MotionGAN): the learned code table
+and adaptive instance normalisation (AdaIN). Shared by the temporal generator
+(``multistyle``) and the skeleton-graph one (``graph``)."""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+
+class StyleCodes(nn.Module):
+    """The code table (S, code_dim); a mix (B, S) of weights -> codes (B, code_dim)."""
+
+    def __init__(self, num_styles: int, code_dim: int):
+        super().__init__()
+        self.table = nn.Parameter(torch.randn(num_styles, code_dim))
+
+    def forward(self, weights: torch.Tensor) -> torch.Tensor:
+        return weights.to(self.table.dtype) @ self.table
+
+
+class AdaIN(nn.Module):
+    """Instance-normalise each channel over time, then scale and shift it from the code.
+    The affine map starts at (1, 0): before training the code changes nothing."""
+
+    def __init__(self, ch: int, code_dim: int):
+        super().__init__()
+        self.norm = nn.InstanceNorm1d(ch, affine=False)
+        self.affine = nn.Linear(code_dim, 2 * ch)
+        nn.init.zeros_(self.affine.weight)
+        nn.init.zeros_(self.affine.bias)
+
+    def forward(self, x: torch.Tensor, code: torch.Tensor) -> torch.Tensor:
+        gamma, beta = self.affine(code).unsqueeze(-1).chunk(2, dim=1)
+        return (1 + gamma) * self.norm(x) + beta
