@@ -24,7 +24,8 @@ Per tick, in this order (the order is what makes fake-clock replays exact):
   1. apply queued control commands, swap in a newly loaded model;
   2. collect finished inference results (under a virtual clock: wait for all of them);
   3. poll every source and cut words; submit this tick's words as ONE batch;
-  4. render one frame per session and emit it to its sinks (VMC, input VMC, recorder);
+  4. render one frame per session (the foot lock's leg kinematics of all sessions in one
+     vectorised call) and emit it to its sinks (VMC, input VMC, recorder);
   5. every ``status_interval`` seconds, log one status line per performer.
 """
 
@@ -36,7 +37,7 @@ import threading
 
 from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import feet_for
+from stylecast.motion.footlock import feet_for, solve_lock_jobs
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings
 
@@ -47,7 +48,7 @@ from .inference import InferenceWorker
 from .latency import MAX_SLACK, calibrate, delay_line, slack_for
 from .output import PerformerSinks, open_outputs, recording_path
 from .restylers import load_restyler, model_name, style_label, style_mix, with_direction, with_style
-from .session import Session
+from .session import PendingFrame, Session
 from .status import LatencyWindow, status_line, status_messages
 
 log = logging.getLogger("stylecast.daemon")
@@ -278,11 +279,16 @@ class Daemon:
                 batch.append((session.index, end, word, session.style_weights()))
         self.worker.submit(batch, now)
         vmc_time = self.ticks / FPS
+        steps = []
         for session, sinks in zip(self.sessions, self.sinks):
             if session.skeleton_changed:  # the performer's own proportions, from now on
                 session.skeleton_changed = False
                 sinks.set_offsets(session.skeleton.offsets)
-            frame = session.render(drain=session.source.finished)
+            steps.append(session.begin_render(drain=session.source.finished))
+        # Every performer's foot-lock kinematics of this tick in one vectorised call.
+        solve_lock_jobs([step.lock for step in steps if isinstance(step, PendingFrame)])
+        for session, sinks, step in zip(self.sessions, self.sinks, steps):
+            frame = session.finish_render(step) if isinstance(step, PendingFrame) else step
             if frame is None:
                 continue
             sinks.emit(frame, vmc_time)

@@ -33,7 +33,7 @@ import numpy as np
 
 from stylecast.motion.clip import PoseFrame
 from stylecast.motion.clock import OUTPUT_FPS
-from stylecast.motion.footlock import ContactSettings, FootLock
+from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, solve_lock_jobs
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.smoothing import CorrectionFilter
@@ -55,6 +55,17 @@ class OutputFrame:
     rotations: np.ndarray  # (J, 4) restyled (blended) local rotations
     input_rotations: np.ndarray  # (J, 4) what came in (for --out-input)
     input_root: np.ndarray  # (3,) cm, what came in
+
+
+@dataclass(frozen=True, eq=False)
+class PendingFrame:
+    """A new output frame between ``Session.begin_render`` and ``finish_render``."""
+
+    index: int
+    arrival: float
+    input_root: np.ndarray
+    input_rotations: np.ndarray
+    lock: LockJob  # the foot lock's kinematics, solved with the other performers' (``solve_lock_jobs``)
 
 
 class Session:
@@ -204,7 +215,17 @@ class Session:
         """The output frame for this tick: a new one, the held last one, or None before
         the first ``delay`` frames have arrived. ``drain`` (the source has ended): its
         held frames (see ``ingest``) carry the last ``delay`` real frames out, and nothing
-        past the last real frame is sent."""
+        past the last real frame is sent. The engine runs the two halves itself, so that
+        one ``solve_lock_jobs`` call serves every performer of the tick."""
+        step = self.begin_render(drain)
+        if not isinstance(step, PendingFrame):
+            return step
+        solve_lock_jobs([step.lock])
+        return self.finish_render(step)
+
+    def begin_render(self, drain: bool = False) -> "PendingFrame | OutputFrame | None":
+        """``render`` up to the foot lock's kinematics: a new frame is returned pending
+        (its ``lock`` job still to solve), anything else as ``render`` returns it."""
         newest = self.cutter.frames_seen - 1
         target = newest - self.settings.delay
         if drain:
@@ -243,10 +264,15 @@ class Session:
         active = (not self.bypass) and self.blender.serving_word(t) >= self._resume_end
         rotations = self.blender.render(t, input_rot, self.intensity, active)
         rotations = self.smoothing.apply(input_rot[None], rotations[None])
-        roots, rotations = self.feet.apply(t, root, input_rot[None], rotations)
         self.out_t = t + 1
         self.frames_out += 1
-        frame = OutputFrame(self.performer, t, arrival, roots[0], rotations[0], input_rot, root)
+        return PendingFrame(t, arrival, root, input_rot, self.feet.plan(t, root, input_rot[None], rotations))
+
+    def finish_render(self, pending: "PendingFrame") -> OutputFrame:
+        """The frame ``begin_render`` left pending, its lock job solved."""
+        job = pending.lock
+        frame = OutputFrame(self.performer, pending.index, pending.arrival, job.new_roots[0], job.result[0],
+                            pending.input_rotations, pending.input_root)
         self.last_output = frame
         self.new_frame = True
         return frame

@@ -27,7 +27,7 @@ construction. The target follows the input's ankle at every frame (not a positio
 at touch-down), so a mistaken contact costs nothing worse than the input's own leg for
 a few frames.
 
-Floor (``FootLock._keep_above_floor``): a foot in the air whose ankle would go below its
+Floor (``_keep_above_floor``): a foot in the air whose ankle would go below its
 standing height over the floor, or whose ball would go below the floor, is lifted onto it
 by the same IK.
 
@@ -220,19 +220,20 @@ class StanceOffset:
 def leg_chain(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray):
     """Forward kinematics of the Hips and both legs only, vectorised over frames.
 
-    roots (n, 3), rotations (n, J, 4) -> world positions (n, 2, 4, 3) of each leg's
-    joints (hip socket, knee, ankle, ball of the foot), world rotations (n, 2, 4, 4) of
-    UpperLeg, LowerLeg, Foot and Toes, and the Hips' world rotation (n, 4)."""
+    roots (n, 3), rotations (n, J, 4), offsets (J, 3) or per row (n, J, 3) (frames of
+    several performers in one call) -> world positions (n, 2, 4, 3) of each leg's joints
+    (hip socket, knee, ankle, ball of the foot), world rotations (n, 2, 4, 4) of UpperLeg,
+    LowerLeg, Foot and Toes, and the Hips' world rotation (n, 4)."""
     hips = rotations[:, HIPS]
     n = len(roots)
     pos = np.empty((n, 2, 4, 3))
     world = np.empty((n, 2, 4, 4))
-    offs = offsets[LEG_INDEX]  # (2, 4, 3)
+    offs = offsets[..., LEG_INDEX, :]  # (2, 4, 3) or (n, 2, 4, 3)
     local = rotations[:, LEG_INDEX]  # (n, 2, 4, 4)
     parent_rot = np.broadcast_to(hips[:, None], (n, 2, 4))
     parent_pos = np.broadcast_to(roots[:, None], (n, 2, 3))
     for k in range(4):
-        pos[:, :, k] = parent_pos = parent_pos + rot.apply(parent_rot, offs[:, k])
+        pos[:, :, k] = parent_pos = parent_pos + rot.apply(parent_rot, offs[..., k, :])
         world[:, :, k] = parent_rot = rot.multiply(parent_rot, local[:, :, k])
     return pos, world, hips
 
@@ -254,10 +255,10 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches),
     bend the knee towards ``knee_pole`` (n, 2, 3; None: in the plane it has in
     ``rotations``) and give the foot the world rotation ``foot_world`` (n, 2, 4); the hips
-    are those of ``rotations``."""
+    are those of ``rotations``; ``offsets`` as ``leg_chain``'s."""
     pos, world, hips = leg_chain(roots, rotations, offsets)
-    thigh = np.linalg.norm(offsets[LEG_INDEX[:, 1]], axis=-1)  # (2,) socket to knee
-    shin = np.linalg.norm(offsets[LEG_INDEX[:, 2]], axis=-1)  # knee to ankle
+    thigh = np.linalg.norm(offsets[..., LEG_INDEX[:, 1], :], axis=-1)  # (2,) or (n, 2): socket to knee
+    shin = np.linalg.norm(offsets[..., LEG_INDEX[:, 2], :], axis=-1)  # knee to ankle
     socket, knee = pos[:, :, 0], pos[:, :, 1]
     to_target = ankle_target - socket
     dist = np.clip(np.linalg.norm(to_target, axis=-1), np.abs(thigh - shin) + 1e-6, thigh + shin - 1e-6)
@@ -271,7 +272,7 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     # Swing each bone onto its new direction from where it points now (keeps its twist).
     upper_world = rot.multiply(_shortest_arc(_unit(knee - socket), _unit(new_knee - socket)), world[:, :, 0])
     lower_now = rot.multiply(upper_world, rotations[:, LEG_INDEX[:, 1]])
-    shin_now = rot.apply(lower_now, offsets[LEG_INDEX[:, 2]])
+    shin_now = rot.apply(lower_now, offsets[..., LEG_INDEX[:, 2], :])
     lower_world = rot.multiply(_shortest_arc(_unit(shin_now), _unit(new_ankle - new_knee)), lower_now)
     out = np.empty((len(roots), 2, 3, 4))
     out[:, :, 0] = rot.multiply(rot.inverse(hips)[:, None], upper_world)  # the legs hang off the Hips
@@ -365,6 +366,8 @@ class FootLock:
         if r == 0:
             return c
         tri = 1.0 - np.abs(np.arange(-r, r + 1)) / (r + 1)
+        if n == 1:  # the daemon's case, one frame per tick: one window, no view to build
+            return (c * tri[:, None]).max(axis=0, keepdims=True)
         windows = sliding_window_view(c, 2 * r + 1, axis=0)  # (n, 2, 2r+1)
         return (windows * tri).max(axis=-1)
 
@@ -372,13 +375,20 @@ class FootLock:
               outputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Output frames t0 .. t0+n-1, in order: their input roots (n, 3), input rotations
         and restyled rotations (n, J, 4) -> the output's roots (the pelvis height adjusted)
-        and rotations (planted feet locked)."""
+        and rotations (planted feet locked). ``plan`` then ``solve_lock_jobs`` for one lock."""
+        job = self.plan(t0, roots, inputs, outputs)
+        solve_lock_jobs([job])
+        return job.new_roots, job.result
+
+    def plan(self, t0: int, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray) -> "LockJob":
+        """The stateful half of ``apply``: advances the lock (weights, pelvis height, stance)
+        over output frames t0 .. t0+n-1 and returns what is left to do, stateless leg
+        kinematics, as a job ``solve_lock_jobs`` runs together with other locks' jobs."""
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
         outputs = np.asarray(outputs, dtype=np.float64)
+        inputs = np.asarray(inputs, dtype=np.float64)
         w = self.weights(t0, len(roots))
         self._forget_before(t0 - self.ramp)
-        rows = np.flatnonzero(w.max(axis=1) > 0)
-        inputs = np.asarray(inputs, dtype=np.float64)
         own = self._feet(roots, inputs)  # the input's ankles and balls: the lock's targets and the floor's ceiling
         # Where the restyled feet are against the input's: the ankles' height gap sets the
         # pelvis, the rest the stance (``--feet stance``).
@@ -387,59 +397,9 @@ class FootLock:
         new_roots = roots.copy()
         new_roots[:, 1] -= self.pelvis.drops(np.where(w > 0, gap, 0.0), w > 0)
         stance = self.stance.track(t0, own, restyled, w > 0)
-        result = outputs
-        if len(rows):
-            pos_in, world_in, _ = leg_chain(roots[rows], inputs[rows], self.offsets)
-            ankle, foot, knee = pos_in[:, :, 2], world_in[:, :, 2], pos_in[:, :, 1]  # the input's own
-            if stance is not None:  # beside them, turned as restyled, the knee in its restyled plane
-                ankle = ankle + stance[rows, :, :2] @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-                foot = rot.multiply(rot.exp_map(stance[rows, :, 2:] * np.array([0.0, 1.0, 0.0])), foot)
-                knee = None
-            solved = solve_legs(new_roots[rows], outputs[rows], self.offsets, ankle, foot, knee)
-            result = outputs.copy()
-            target = np.concatenate([solved, inputs[rows][:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
-            weight = np.broadcast_to(w[rows][:, :, None], target.shape[:-1])
-            result[rows[:, None, None], LEG_INDEX[None]] = rot.slerp(outputs[rows][:, LEG_INDEX], target, weight)
-            self.locked_frames += int(np.count_nonzero(w >= 1.0))
+        self.locked_frames += int(np.count_nonzero(w >= 1.0))
         floor = self._floors[np.arange(t0, t0 + len(roots)) - self._base]
-        return new_roots, self._keep_above_floor(own, new_roots, result, floor, w < 1.0)
-
-    def _keep_above_floor(self, own, new_roots, outputs, floor, free):
-        """A foot in the air can go through the floor the input's foot cleared: a restyled
-        leg straighter than the input's, a foot pitched further down, or (most, measured
-        2.7 cm at the 99th percentile on held-out clips without this step) the lowered
-        pelvis. Where the ankle would go below its standing height over the floor, or the
-        ball below the floor, the leg IK lifts the ankle (the foot keeps its rotation, the
-        knee its plane) until both clear it, through a soft edge (``_soft_floor``), never
-        higher than the input's own foot there (``own``: its ankles and balls). Lifting the ankle rather than pitching the
-        foot up: a foot pointing down needs a large turn for a small lift (measured: an
-        8-degree pop in one frame). A fully locked foot (not ``free``) is the input's own,
-        above the floor by definition, and is skipped: most frames of a stream."""
-        if not free.any():
-            return outputs
-        ankle, ball = self._feet(new_roots, outputs)
-        near = free & ((ankle[..., 1] < floor[:, None] + self._ankle_rest + FLOOR_MARGIN) | (
-            ball[..., 1] < floor[:, None] + FLOOR_MARGIN))
-        rows = np.flatnonzero(near.any(axis=1))
-        if len(rows) == 0:
-            return outputs
-        pos, world, _ = leg_chain(new_roots[rows], outputs[rows], self.offsets)
-        own_ankle, own_ball = own[0][rows, :, 1], own[1][rows, :, 1]
-        below = floor[rows, None]
-        up = np.maximum(
-            _soft_floor(pos[:, :, 2, 1], np.minimum(below + self._ankle_rest, own_ankle), own_ankle) - pos[:, :, 2, 1],
-            _soft_floor(pos[:, :, 3, 1], np.minimum(below, own_ball), own_ball) - pos[:, :, 3, 1])
-        lift = near[rows] & (up > 0)
-        if not lift.any():
-            return outputs
-        target = pos[:, :, 2].copy()
-        target[..., 1] += up
-        solved = solve_legs(new_roots[rows], outputs[rows], self.offsets, target, world[:, :, 2])
-        result = outputs.copy()
-        legs = LEG_INDEX[:, :3]
-        weight = np.broadcast_to(lift[:, :, None].astype(float), solved.shape[:-1])
-        result[rows[:, None, None], legs[None]] = rot.slerp(outputs[rows][:, legs], solved, weight)
-        return result
+        return LockJob(self, roots, new_roots, inputs, outputs, w, stance, own, floor)
 
     def _feet(self, roots: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ankle and ball positions (n, 2, 3) of both legs."""
@@ -455,6 +415,141 @@ class FootLock:
             self._contacts = self._contacts[drop:]
             self._floors = self._floors[drop:]
             self._base += drop
+
+
+@dataclass(eq=False)
+class LockJob:
+    """One lock's output frames between ``FootLock.plan`` and ``solve_lock_jobs``. Arrays
+    are per frame: input ``roots`` (n, 3), ``new_roots`` (the pelvis height set), input
+    and restyled rotations (n, J, 4), lock ``weights`` (n, 2), ``stance`` offsets (n, 2, 3)
+    or None, the input's own (ankle, ball) positions (n, 2, 3) and the ``floor`` (n,).
+    ``result``: the locked rotations, once solved."""
+
+    lock: FootLock
+    roots: np.ndarray
+    new_roots: np.ndarray
+    inputs: np.ndarray
+    outputs: np.ndarray
+    weights: np.ndarray
+    stance: np.ndarray | None
+    own: tuple
+    floor: np.ndarray
+    result: np.ndarray | None = None
+
+
+def solve_lock_jobs(jobs: list[LockJob]) -> None:
+    """The leg kinematics of many locks' jobs (the daemon: every performer's frame of this
+    tick) in one vectorised pass, each frame with its own performer's proportions: the lock
+    of planted feet, then the floor (see the module docstring). Sets each ``job.result``.
+    Run per lock, numpy's per-call cost was 55x the work (``bench_daemon.py footlock``)."""
+    for job in jobs:
+        job.result = job.outputs
+    for with_stance in (False, True):  # the two kinds of target: one pass each
+        group = [j for j in jobs if (j.stance is not None) == with_stance]
+        _lock_planted(group, [np.flatnonzero(j.weights.max(axis=1) > 0) for j in group])
+    _keep_above_floor(jobs)
+
+
+def _rows_of(jobs: list[LockJob], rows: list[np.ndarray], values) -> np.ndarray:
+    """``values(job)`` (n, ...) of the chosen rows of every job, stacked."""
+    return np.concatenate([values(j)[r] for j, r in zip(jobs, rows)])
+
+
+def _offsets_of(jobs: list[LockJob], rows: list[np.ndarray]) -> np.ndarray:
+    """Each chosen row's performer's bone offsets: (J, 3) when one lock, else (rows, J, 3)."""
+    if len(jobs) == 1:
+        return jobs[0].lock.offsets
+    return np.concatenate([np.broadcast_to(j.lock.offsets, (len(r), *j.lock.offsets.shape)) for j, r in zip(jobs, rows)])
+
+
+def _put_back(jobs: list[LockJob], rows: list[np.ndarray], bones: np.ndarray, solved: np.ndarray) -> None:
+    """Write the stacked rotations ``solved`` (rows, 2, k, 4) of the leg ``bones`` (2, k)
+    into each job's result (copied first: the outputs are the caller's)."""
+    start = 0
+    for j, r in zip(jobs, rows):
+        result = j.result.copy()
+        result[r[:, None, None], bones[None]] = solved[start:start + len(r)]
+        j.result = result
+        start += len(r)
+
+
+def _lock_planted(jobs: list[LockJob], rows: list[np.ndarray]) -> None:
+    """Where a lock weight is above 0: the leg IK onto the input's ankle (or beside it, with
+    the stance), the foot turned as the input's, slerped with the restyled leg by the weight."""
+    keep = [k for k, r in enumerate(rows) if len(r)]
+    jobs, rows = [jobs[k] for k in keep], [rows[k] for k in keep]
+    if not jobs:
+        return
+    offsets = _offsets_of(jobs, rows)
+    inputs = _rows_of(jobs, rows, lambda j: j.inputs)
+    outputs = _rows_of(jobs, rows, lambda j: j.outputs)
+    pos_in, world_in, _ = leg_chain(_rows_of(jobs, rows, lambda j: j.roots), inputs, offsets)
+    ankle, foot, knee = pos_in[:, :, 2], world_in[:, :, 2], pos_in[:, :, 1]  # the input's own
+    if jobs[0].stance is not None:  # beside them, turned as restyled, the knee in its restyled plane
+        stance = _rows_of(jobs, rows, lambda j: j.stance)
+        ankle = ankle + stance[:, :, :2] @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+        foot = rot.multiply(rot.exp_map(stance[:, :, 2:] * np.array([0.0, 1.0, 0.0])), foot)
+        knee = None
+    solved = solve_legs(_rows_of(jobs, rows, lambda j: j.new_roots), outputs, offsets, ankle, foot, knee)
+    target = np.concatenate([solved, inputs[:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
+    weights = _rows_of(jobs, rows, lambda j: j.weights)
+    weight = np.broadcast_to(weights[:, :, None], target.shape[:-1])
+    _put_back(jobs, rows, LEG_INDEX, rot.slerp(outputs[:, LEG_INDEX], target, weight))
+
+
+def _keep_above_floor(jobs: list[LockJob]) -> None:
+    """A foot in the air can go through the floor the input's foot cleared: a restyled
+    leg straighter than the input's, a foot pitched further down, or (most, measured
+    2.7 cm at the 99th percentile on held-out clips without this step) the lowered
+    pelvis. Where the ankle would go below its standing height over the floor, or the
+    ball below the floor, the leg IK lifts the ankle (the foot keeps its rotation, the
+    knee its plane) until both clear it, through a soft edge (``_soft_floor``), never
+    higher than the input's own foot there (``own``: its ankles and balls). Lifting the
+    ankle rather than pitching the foot up: a foot pointing down needs a large turn for a
+    small lift (measured: an 8-degree pop in one frame). A fully locked foot (weight 1) is
+    the input's own, above the floor by definition, and is skipped: most frames of a
+    stream."""
+    candidates = [j for j in jobs if (j.weights < 1.0).any()]
+    if not candidates:
+        return
+    every = [np.arange(len(j.new_roots)) for j in candidates]
+    pos, _, _ = leg_chain(_rows_of(candidates, every, lambda j: j.new_roots),
+                          _rows_of(candidates, every, lambda j: j.result), _offsets_of(candidates, every))
+    chosen, rows, nears = [], [], []
+    start = 0
+    for job in candidates:
+        end = start + len(job.new_roots)
+        ankle, ball = pos[start:end, :, 2, 1], pos[start:end, :, 3, 1]
+        start = end
+        near = (job.weights < 1.0) & ((ankle < job.floor[:, None] + job.lock._ankle_rest + FLOOR_MARGIN) | (
+            ball < job.floor[:, None] + FLOOR_MARGIN))
+        r = np.flatnonzero(near.any(axis=1))
+        if len(r):
+            chosen.append(job)
+            rows.append(r)
+            nears.append(near[r])
+    if not chosen:
+        return
+    offsets = _offsets_of(chosen, rows)
+    roots = _rows_of(chosen, rows, lambda j: j.new_roots)
+    outputs = _rows_of(chosen, rows, lambda j: j.result)
+    pos, world, _ = leg_chain(roots, outputs, offsets)
+    own_ankle = _rows_of(chosen, rows, lambda j: j.own[0][..., 1])
+    own_ball = _rows_of(chosen, rows, lambda j: j.own[1][..., 1])
+    below = _rows_of(chosen, rows, lambda j: j.floor)[:, None]
+    rest = np.concatenate([np.full(len(r), j.lock._ankle_rest) for j, r in zip(chosen, rows)])[:, None]
+    up = np.maximum(
+        _soft_floor(pos[:, :, 2, 1], np.minimum(below + rest, own_ankle), own_ankle) - pos[:, :, 2, 1],
+        _soft_floor(pos[:, :, 3, 1], np.minimum(below, own_ball), own_ball) - pos[:, :, 3, 1])
+    lift = np.concatenate(nears) & (up > 0)
+    if not lift.any():
+        return
+    target = pos[:, :, 2].copy()
+    target[..., 1] += up
+    solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2])
+    legs = LEG_INDEX[:, :3]
+    weight = np.broadcast_to(lift[:, :, None].astype(float), solved.shape[:-1])
+    _put_back(chosen, rows, legs, rot.slerp(outputs[:, legs], solved, weight))
 
 
 def _soft_floor(height: np.ndarray, floor: np.ndarray, own: np.ndarray) -> np.ndarray:

@@ -152,7 +152,14 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root):
 
 
 def test_several_performers_are_batched_and_each_equals_offline():
-    clips = [walk_clip(200, seed=s) for s in range(3)]
+    """Their words share model calls and their foot locks one solve per tick, each with its
+    own proportions (a child-sized, an adult and a tall performer)."""
+    from tests.test_footlock import stepping
+
+    roots, q = stepping(200)
+    sk = humanoid_skeleton_default()
+    clips = [Clip(sk.with_offsets(sk.offsets * scale), np.roll(q, 20 * k, axis=0), roots * scale, 60.0)
+             for k, scale in enumerate((0.6, 1.0, 1.2))]
     restyler = StandInRestyler()
     frames: dict[str, list] = {}
     sources = [ReplaySource(c, f"p{k}") for k, c in enumerate(clips)]
@@ -163,7 +170,10 @@ def test_several_performers_are_batched_and_each_equals_offline():
     assert daemon.worker.batches < daemon.worker.words  # words of several performers share calls
     for k, clip in enumerate(clips):
         live = np.stack([f.rotations for f in frames[f"p{k}"]])
-        assert rot.angle_between(live, offline(clip, restyler, 10).rotations).max() < 1e-4
+        expected = offline(clip, restyler, 10)
+        assert rot.angle_between(live, expected.rotations).max() < 1e-4
+        np.testing.assert_allclose(np.stack([f.root_position for f in frames[f"p{k}"]]), expected.roots, atol=1e-6)
+    assert min(s.feet.locked_frames for s in daemon.sessions) > 30  # every performer's feet were locked
 
 
 def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline():

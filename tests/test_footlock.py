@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import FEET, LEGS, ContactSettings, FootLock, _hysteresis, leg_chain
+from stylecast.motion.footlock import (FEET, LEGS, ContactSettings, FootLock, _hysteresis, leg_chain,
+                                      solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
@@ -155,6 +156,37 @@ def test_streaming_a_frame_at_a_time_equals_the_whole_clip():
     assert rot.angle_between(np.array(got), expected[:len(got)]).max() < 1e-9
     np.testing.assert_allclose(np.array(got_roots), expected_roots[:len(got)], atol=1e-9)
     assert np.ptp(expected_roots[:, 1]) > 0.5  # the pelvis height really moved
+
+
+def test_performers_solved_in_one_call_equal_each_solved_alone():
+    """The daemon solves every performer's frame of a tick in one vectorised call, each
+    with its own proportions and lock; each must come out exactly as it does alone. Four
+    performers: two body sizes, both locks, one gliding off (the floor step, not the lock)."""
+    roots, q = stepping(200)
+    glide = roots.copy()
+    glide[100:, 2] = 5.0 * np.arange(100)
+    performers = [(SK, ON_INPUT_ANKLES, roots, restyled(q)),
+                  (SK.with_offsets(SK.offsets * 0.85), ON_INPUT_ANKLES, roots * [1, 0.85, 1], restyled(q, 20.0)),
+                  (SK.with_offsets(SK.offsets * 1.1), STANCE, roots * [1, 1.1, 1], restyled(q)),
+                  (SK, ON_INPUT_ANKLES, glide, crouched(q))]
+    together = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
+    alone = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
+    lifted = locked = 0
+    for t in range(len(q)):
+        for lock_a, lock_b, (_, _, r, _) in zip(together, alone, performers):
+            lock_a.push(r[t:t + 1], q[t:t + 1])
+            lock_b.push(r[t:t + 1], q[t:t + 1])
+        k = t - 4
+        if k < 0:
+            continue
+        jobs = [lock.plan(k, r[k:k + 1], q[k:k + 1], out[k:k + 1]) for lock, (_, _, r, out) in zip(together, performers)]
+        solve_lock_jobs(jobs)
+        for job, lock, (_, _, r, out) in zip(jobs, alone, performers):
+            new_roots, rotations = lock.apply(k, r[k:k + 1], q[k:k + 1], out[k:k + 1])
+            assert np.array_equal(job.new_roots, new_roots) and np.array_equal(job.result, rotations)
+        locked += sum(job.weights.any() for job in jobs)
+        lifted += not np.array_equal(jobs[3].result, jobs[3].outputs) and not jobs[3].weights.any()
+    assert locked > 300 and lifted > 10  # both the lock and the floor step were exercised
 
 
 def test_nothing_changes_where_no_foot_is_planted_or_near_the_floor():
