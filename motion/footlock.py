@@ -381,25 +381,14 @@ class FootLock:
         return job.new_roots, job.result
 
     def plan(self, t0: int, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray) -> "LockJob":
-        """The stateful half of ``apply``: advances the lock (weights, pelvis height, stance)
-        over output frames t0 .. t0+n-1 and returns what is left to do, stateless leg
-        kinematics, as a job ``solve_lock_jobs`` runs together with other locks' jobs."""
+        """Output frames t0 .. t0+n-1 (as ``apply``'s) as a job for ``solve_lock_jobs``, which
+        runs the jobs of many locks together; this part needs only the contacts pushed."""
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
-        outputs = np.asarray(outputs, dtype=np.float64)
-        inputs = np.asarray(inputs, dtype=np.float64)
         w = self.weights(t0, len(roots))
         self._forget_before(t0 - self.ramp)
-        own = self._feet(roots, inputs)  # the input's ankles and balls: the lock's targets and the floor's ceiling
-        # Where the restyled feet are against the input's: the ankles' height gap sets the
-        # pelvis, the rest the stance (``--feet stance``).
-        restyled = self._feet(roots, outputs)
-        gap = restyled[0][..., 1] - own[0][..., 1]  # (n, 2)
-        new_roots = roots.copy()
-        new_roots[:, 1] -= self.pelvis.drops(np.where(w > 0, gap, 0.0), w > 0)
-        stance = self.stance.track(t0, own, restyled, w > 0)
-        self.locked_frames += int(np.count_nonzero(w >= 1.0))
         floor = self._floors[np.arange(t0, t0 + len(roots)) - self._base]
-        return LockJob(self, roots, new_roots, inputs, outputs, w, stance, own, floor)
+        return LockJob(self, t0, roots, np.asarray(inputs, dtype=np.float64), np.asarray(outputs, dtype=np.float64),
+                       w, floor)
 
     def _feet(self, roots: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ankle and ball positions (n, 2, 3) of both legs."""
@@ -419,35 +408,66 @@ class FootLock:
 
 @dataclass(eq=False)
 class LockJob:
-    """One lock's output frames between ``FootLock.plan`` and ``solve_lock_jobs``. Arrays
-    are per frame: input ``roots`` (n, 3), ``new_roots`` (the pelvis height set), input
-    and restyled rotations (n, J, 4), lock ``weights`` (n, 2), ``stance`` offsets (n, 2, 3)
-    or None, the input's own (ankle, ball) positions (n, 2, 3) and the ``floor`` (n,).
-    ``result``: the locked rotations, once solved."""
+    """One lock's output frames t0 .. t0+n-1 from ``FootLock.plan`` to ``solve_lock_jobs``:
+    input ``roots`` (n, 3), input and restyled rotations (n, J, 4), lock ``weights`` (n, 2)
+    and the ``floor`` (n,). Solving fills in the input's own (ankle, ball) positions ``own``
+    (n, 2, 3 each), ``new_roots`` (the pelvis height set), the ``stance`` offsets (n, 2, 3;
+    None when off) and ``result``, the locked rotations."""
 
     lock: FootLock
+    t0: int
     roots: np.ndarray
-    new_roots: np.ndarray
     inputs: np.ndarray
     outputs: np.ndarray
     weights: np.ndarray
-    stance: np.ndarray | None
-    own: tuple
     floor: np.ndarray
+    own: tuple | None = None
+    new_roots: np.ndarray | None = None
+    stance: np.ndarray | None = None
     result: np.ndarray | None = None
 
 
 def solve_lock_jobs(jobs: list[LockJob]) -> None:
-    """The leg kinematics of many locks' jobs (the daemon: every performer's frame of this
-    tick) in one vectorised pass, each frame with its own performer's proportions: the lock
-    of planted feet, then the floor (see the module docstring). Sets each ``job.result``.
-    Run per lock, numpy's per-call cost was 55x the work (``bench_daemon.py footlock``)."""
+    """Many locks' jobs (the daemon: every performer's frame of this tick) in one vectorised
+    pass, each frame with its own performer's proportions: the pelvis height and stance
+    (each lock's state advanced in order), the lock of planted feet, then the floor (see
+    the module docstring). Run per lock, numpy's per-call cost was 55x the work
+    (``bench_daemon.py footlock``). Each job is solved once, in the order of its frames."""
+    if not jobs:
+        return
+    _advance(jobs)
     for job in jobs:
         job.result = job.outputs
     for with_stance in (False, True):  # the two kinds of target: one pass each
         group = [j for j in jobs if (j.stance is not None) == with_stance]
         _lock_planted(group, [np.flatnonzero(j.weights.max(axis=1) > 0) for j in group])
     _keep_above_floor(jobs)
+
+
+def _advance(jobs: list[LockJob]) -> None:
+    """Where the restyled feet stand against the input's (every job's legs in one forward
+    kinematics call each for the input and the restyle): the ankles' height gap sets the
+    pelvis, the rest the stance (``--feet stance``); each lock's state moves on."""
+    if len(jobs) == 1:  # one lock (one performer, or a clip): its own path, floats for one frame
+        job = jobs[0]
+        feet = [(job.lock._feet(job.roots, job.inputs), job.lock._feet(job.roots, job.outputs))]
+    else:
+        every = [np.arange(len(j.roots)) for j in jobs]
+        offsets = _offsets_of(jobs, every)
+        roots = _rows_of(jobs, every, lambda j: j.roots)
+        own, _, _ = leg_chain(roots, _rows_of(jobs, every, lambda j: j.inputs), offsets)
+        restyled, _, _ = leg_chain(roots, _rows_of(jobs, every, lambda j: j.outputs), offsets)
+        ends = np.cumsum([len(j.roots) for j in jobs])
+        feet = [((own[e - len(j.roots):e, :, 2], own[e - len(j.roots):e, :, 3]),
+                 (restyled[e - len(j.roots):e, :, 2], restyled[e - len(j.roots):e, :, 3])) for j, e in zip(jobs, ends)]
+    for job, (mine, theirs) in zip(jobs, feet):
+        lock, w = job.lock, job.weights
+        job.own = mine  # the input's ankles and balls: the lock's targets and the floor's ceiling
+        gap = theirs[0][..., 1] - job.own[0][..., 1]  # (n, 2)
+        job.new_roots = job.roots.copy()
+        job.new_roots[:, 1] -= lock.pelvis.drops(np.where(w > 0, gap, 0.0), w > 0)
+        job.stance = lock.stance.track(job.t0, job.own, theirs, w > 0)
+        lock.locked_frames += int(np.count_nonzero(w >= 1.0))
 
 
 def _rows_of(jobs: list[LockJob], rows: list[np.ndarray], values) -> np.ndarray:

@@ -160,7 +160,8 @@ def test_streaming_a_frame_at_a_time_equals_the_whole_clip():
 
 def test_performers_solved_in_one_call_equal_each_solved_alone():
     """The daemon solves every performer's frame of a tick in one vectorised call, each
-    with its own proportions and lock; each must come out exactly as it does alone. Four
+    with its own proportions and lock; each must come out as it does alone (to rounding:
+    one lock alone takes its feet on Python floats). Four
     performers: two body sizes, both locks, one gliding off (the floor step, not the lock)."""
     roots, q = stepping(200)
     glide = roots.copy()
@@ -183,7 +184,8 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
         solve_lock_jobs(jobs)
         for job, lock, (_, _, r, out) in zip(jobs, alone, performers):
             new_roots, rotations = lock.apply(k, r[k:k + 1], q[k:k + 1], out[k:k + 1])
-            assert np.array_equal(job.new_roots, new_roots) and np.array_equal(job.result, rotations)
+            np.testing.assert_allclose(job.new_roots, new_roots, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(job.result, rotations, rtol=0, atol=1e-12)
         locked += sum(job.weights.any() for job in jobs)
         lifted += not np.array_equal(jobs[3].result, jobs[3].outputs) and not jobs[3].weights.any()
     assert locked > 300 and lifted > 10  # both the lock and the floor step were exercised
