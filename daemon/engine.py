@@ -24,8 +24,8 @@ Per tick, in this order (the order is what makes fake-clock replays exact):
   1. apply queued control commands, swap in a newly loaded model;
   2. collect finished inference results (under a virtual clock: wait for all of them);
   3. poll every source and cut words; submit this tick's words as ONE batch;
-  4. render one frame per session (the foot lock's leg kinematics of all sessions in one
-     vectorised call) and emit it to its sinks (VMC, input VMC, recorder);
+  4. render one frame per session (the correction low-pass and the foot lock of all
+     sessions in one vectorised pass each) and emit it to its sinks (VMC, input VMC, recorder);
   5. every ``status_interval`` seconds, log one status line per performer.
 """
 
@@ -37,7 +37,7 @@ import threading
 
 from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import feet_for, solve_lock_jobs
+from stylecast.motion.footlock import feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings
 
@@ -48,7 +48,7 @@ from .inference import InferenceWorker
 from .latency import MAX_SLACK, calibrate, delay_line, slack_for
 from .output import PerformerSinks, open_outputs, recording_path
 from .restylers import load_restyler, model_name, style_label, style_mix, with_direction, with_style
-from .session import PendingFrame, Session
+from .session import PendingFrame, Session, settle_frames
 from .status import LatencyWindow, status_line, status_messages
 
 log = logging.getLogger("stylecast.daemon")
@@ -285,8 +285,9 @@ class Daemon:
                 session.skeleton_changed = False
                 sinks.set_offsets(session.skeleton.offsets)
             steps.append(session.begin_render(drain=session.source.finished))
-        # Every performer's foot-lock kinematics of this tick in one vectorised call.
-        solve_lock_jobs([step.lock for step in steps if isinstance(step, PendingFrame)])
+        # Every performer's new frame through the low-pass and the foot lock in one pass.
+        new = [(session, step) for session, step in zip(self.sessions, steps) if isinstance(step, PendingFrame)]
+        settle_frames([session for session, _ in new], [step for _, step in new])
         for session, sinks, step in zip(self.sessions, self.sinks, steps):
             frame = session.finish_render(step) if isinstance(step, PendingFrame) else step
             if frame is None:

@@ -36,7 +36,7 @@ from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, solve_lock_jobs
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
-from stylecast.motion.smoothing import CorrectionFilter
+from stylecast.motion.smoothing import CorrectionFilter, filter_frames
 from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter
 
 from .status import LatencyWindow
@@ -57,15 +57,31 @@ class OutputFrame:
     input_root: np.ndarray  # (3,) cm, what came in
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(eq=False)
 class PendingFrame:
-    """A new output frame between ``Session.begin_render`` and ``finish_render``."""
+    """A new output frame from ``Session.begin_render`` to ``finish_render``: the seam
+    blender's output, to be low-passed and foot-locked with the other performers' frames of
+    the tick (``settle_frames``)."""
 
     index: int
     arrival: float
     input_root: np.ndarray
-    input_rotations: np.ndarray
-    lock: LockJob  # the foot lock's kinematics, solved with the other performers' (``solve_lock_jobs``)
+    input_rotations: np.ndarray  # (J, 4)
+    blended: np.ndarray  # (J, 4)
+    lock: LockJob | None = None  # the foot lock's job, solved
+
+
+def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> None:
+    """The stages after the seam blender for one new frame of each session, each stage one
+    vectorised pass over all of them: the correction low-pass, then the foot lock and the
+    pelvis height. Sets each pending frame's ``lock`` (its solved job)."""
+    if not pending:
+        return
+    smoothed = filter_frames([s.smoothing for s in sessions], np.stack([p.input_rotations for p in pending]),
+                             np.stack([p.blended for p in pending]))
+    for k, (session, frame) in enumerate(zip(sessions, pending)):
+        frame.lock = session.feet.plan(frame.index, frame.input_root, frame.input_rotations[None], smoothed[k:k + 1])
+    solve_lock_jobs([frame.lock for frame in pending])
 
 
 class Session:
@@ -220,12 +236,12 @@ class Session:
         step = self.begin_render(drain)
         if not isinstance(step, PendingFrame):
             return step
-        solve_lock_jobs([step.lock])
+        settle_frames([self], [step])
         return self.finish_render(step)
 
     def begin_render(self, drain: bool = False) -> "PendingFrame | OutputFrame | None":
-        """``render`` up to the foot lock's kinematics: a new frame is returned pending
-        (its ``lock`` job still to solve), anything else as ``render`` returns it."""
+        """``render`` up to the seam blender: a new frame is returned pending (for
+        ``settle_frames``), anything else as ``render`` returns it."""
         newest = self.cutter.frames_seen - 1
         target = newest - self.settings.delay
         if drain:
@@ -263,13 +279,12 @@ class Session:
         _, arrival, root, input_rot = self._input(t)
         active = (not self.bypass) and self.blender.serving_word(t) >= self._resume_end
         rotations = self.blender.render(t, input_rot, self.intensity, active)
-        rotations = self.smoothing.apply(input_rot[None], rotations[None])
         self.out_t = t + 1
         self.frames_out += 1
-        return PendingFrame(t, arrival, root, input_rot, self.feet.plan(t, root, input_rot[None], rotations))
+        return PendingFrame(t, arrival, root, input_rot, rotations)
 
-    def finish_render(self, pending: "PendingFrame") -> OutputFrame:
-        """The frame ``begin_render`` left pending, its lock job solved."""
+    def finish_render(self, pending: PendingFrame) -> OutputFrame:
+        """The frame ``begin_render`` left pending, settled (``settle_frames``)."""
         job = pending.lock
         frame = OutputFrame(self.performer, pending.index, pending.arrival, job.new_roots[0], job.result[0],
                             pending.input_rotations, pending.input_root)

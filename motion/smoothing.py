@@ -48,3 +48,21 @@ class CorrectionFilter:
         correction = rot.log_map(rot.multiply(outputs, rot.inverse(inputs))).reshape(n, -1)
         smooth, self._state = lfilter(self._b, self._a, correction, axis=0, zi=self._state)
         return rot.multiply(rot.exp_map(smooth.reshape(n, joints, 3)), inputs)
+
+
+def filter_frames(filters: list[CorrectionFilter], inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+    """One frame of each of several streams, (P, J, 4) inputs and outputs, each through its
+    own filter, in one vectorised pass (the daemon's tick: one frame per performer, where
+    numpy's per-call cost was most of the filter's); the same as each filter's ``apply``."""
+    taus = {f.tau for f in filters}
+    if len(taus) > 1 or min(taus) <= 0:  # (the daemon's streams share one tau)
+        return np.stack([f.apply(i[None], o[None])[0] for f, i, o in zip(filters, inputs, outputs)])
+    inputs = np.asarray(inputs, dtype=np.float64)
+    p, joints = inputs.shape[:2]
+    correction = rot.log_map(rot.multiply(outputs, rot.inverse(inputs))).reshape(1, p, -1)
+    state = np.stack([f._state for f in filters], axis=1)  # (3, P, J*3)
+    smooth, state = lfilter(filters[0]._b, filters[0]._a, correction, axis=0, zi=state)
+    for k, f in enumerate(filters):
+        f._state = state[:, k]
+    return rot.multiply(rot.exp_map(smooth[0].reshape(p, joints, 3)), inputs)
+

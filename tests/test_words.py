@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.smoothing import CorrectionFilter
+from stylecast.motion.smoothing import CorrectionFilter, filter_frames
 from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, restyle_stream
 
 J = 22
@@ -169,3 +169,21 @@ def test_the_correction_filter_removes_a_shaking_correction_and_keeps_a_steady_o
     assert rot.angle_between(settled[60:], steady[60:]).max() < 1e-3  # a steady correction passes whole
     assert rot.angle_between(CorrectionFilter(J).apply(motion, motion), motion).max() < 1e-9
     assert CorrectionFilter(J, tau=0).apply(motion, flip) is flip  # off
+
+
+def test_streams_filtered_together_a_frame_a_tick_equal_each_filtered_alone():
+    """The daemon low-passes every performer's frame of a tick in one call (``filter_frames``);
+    each stream must come out as its own filter run over its whole clip."""
+    motions = [smooth_motion(120, seed=k) for k in range(3)]
+    restyled = [rot.multiply(rot.from_euler(np.full((J, 3), 5.0 * (k + 1)), "ZXY"), m) for k, m in enumerate(motions)]
+    filters = [CorrectionFilter(J) for _ in motions]
+    got = np.stack([filter_frames(filters, np.stack([m[t] for m in motions]), np.stack([r[t] for r in restyled]))
+                    for t in range(120)], axis=1)  # (3, 120, J, 4)
+    for k, (m, r) in enumerate(zip(motions, restyled)):
+        expected = CorrectionFilter(J).apply(m, r)
+        assert rot.angle_between(got[k], expected).max() < 1e-9
+        assert rot.angle_between(got[k, 60:], r[60:]).max() < 1e-3  # each settled on its own correction
+    mixed = [CorrectionFilter(J), CorrectionFilter(J, tau=0)]  # different settings: each its own way
+    out = filter_frames(mixed, np.stack([motions[0][0]] * 2), np.stack([restyled[0][0]] * 2))
+    assert rot.angle_between(out[1], restyled[0][0]).max() < 1e-9
+
