@@ -308,6 +308,8 @@ class FootLock:
         self.settings = settings
         self.set_offsets(skeleton.offsets)
         self.ramp = settings.ramp if ramp is None else max(0, int(ramp))
+        # The lock weight around a contact: a triangle over 2 ramp + 1 frames.
+        self._triangle = 1.0 - np.abs(np.arange(-self.ramp, self.ramp + 1)) / (self.ramp + 1)
         self.pelvis = PelvisHeight(settings.pelvis_tau, settings.pelvis_cap)
         self.stance = StanceOffset(settings)
         self.frames = 0  # input frames pushed
@@ -403,18 +405,18 @@ class FootLock:
     def weights(self, t0: int, n: int) -> np.ndarray:
         """Lock weights (n, 2) of output frames t0 .. t0+n-1 (needs inputs to t0+n-1+ramp)."""
         r = self.ramp
-        lo = t0 - r
-        idx = np.arange(lo, t0 + n + r) - self._base
-        valid = (idx >= 0) & (idx < len(self._contacts))
-        c = np.zeros((len(idx), 2))
-        c[valid] = self._contacts[idx[valid]]
+        lo = t0 - r - self._base  # the contacts t0 - r .. t0 + n - 1 + r, zero where not known
+        hi = lo + n + 2 * r
+        c = np.zeros((n + 2 * r, 2))
+        a, b = max(lo, 0), min(hi, len(self._contacts))
+        if a < b:
+            c[a - lo:b - lo] = self._contacts[a:b]
         if r == 0:
             return c
-        tri = 1.0 - np.abs(np.arange(-r, r + 1)) / (r + 1)
         if n == 1:  # the daemon's case, one frame per tick: one window, no view to build
-            return (c * tri[:, None]).max(axis=0, keepdims=True)
+            return (c * self._triangle[:, None]).max(axis=0, keepdims=True)
         windows = sliding_window_view(c, 2 * r + 1, axis=0)  # (n, 2, 2r+1)
-        return (windows * tri).max(axis=-1)
+        return (windows * self._triangle).max(axis=-1)
 
     def apply(self, t0: int, roots: np.ndarray, inputs: np.ndarray,
               outputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -455,9 +457,8 @@ class FootLock:
 class LockJob:
     """One lock's output frames t0 .. t0+n-1 from ``FootLock.plan`` to ``solve_lock_jobs``:
     input ``roots`` (n, 3), input and restyled rotations (n, J, 4), lock ``weights`` (n, 2)
-    and the ``floor`` (n,). Solving fills in the input's own (ankle, ball) positions ``own``
-    (n, 2, 3 each), ``new_roots`` (the pelvis height set), the ``stance`` offsets (n, 2, 3;
-    None when off) and ``result``, the locked rotations."""
+    and the ``floor`` (n,). Solving fills in ``new_roots`` (the pelvis height set) and
+    ``result``, the locked rotations."""
 
     lock: FootLock
     t0: int
@@ -466,9 +467,7 @@ class LockJob:
     outputs: np.ndarray
     weights: np.ndarray
     floor: np.ndarray
-    own: tuple | None = None
     new_roots: np.ndarray | None = None
-    stance: np.ndarray | None = None
     result: np.ndarray | None = None
 
 
@@ -480,89 +479,87 @@ def solve_lock_jobs(jobs: list[LockJob]) -> None:
     (``bench_daemon.py footlock``). Each job is solved once, in the order of its frames."""
     if not jobs:
         return
-    _advance(jobs)
-    for job in jobs:
-        job.result = job.outputs
+    rows = _Rows(jobs)
+    _advance(rows)
     for with_stance in (False, True):  # the two kinds of target: one pass each
-        group = [j for j in jobs if (j.stance is not None) == with_stance]
-        _lock_planted(group, [np.flatnonzero(j.weights.max(axis=1) > 0) for j in group])
-    _keep_above_floor(jobs)
+        _lock_planted(rows, np.flatnonzero((rows.weights.max(axis=1) > 0) & (rows.with_stance == with_stance)))
+    _keep_above_floor(rows)
+    for job, (lo, hi) in zip(jobs, rows.spans):
+        job.new_roots, job.result = rows.new_roots[lo:hi], rows.result[lo:hi]
 
 
-def _advance(jobs: list[LockJob]) -> None:
-    """Where the restyled feet stand against the input's (every job's legs in one forward
+class _Rows:
+    """Every job's frames stacked into one set of rows, the arrays the vectorised passes
+    work on (``result`` is written in place), with each row's performer's proportions."""
+
+    def __init__(self, jobs: list[LockJob]):
+        self.jobs = jobs
+        sizes = [len(j.roots) for j in jobs]
+        ends = np.cumsum(sizes)
+        self.spans = list(zip((ends - sizes).tolist(), ends.tolist()))
+        stack = (lambda f: f(jobs[0])) if len(jobs) == 1 else (lambda f: np.concatenate([f(j) for j in jobs]))
+        self.roots, self.inputs, self.outputs = stack(lambda j: j.roots), stack(lambda j: j.inputs), \
+            stack(lambda j: j.outputs)
+        self.weights, self.floor = stack(lambda j: j.weights), stack(lambda j: j.floor)
+        # (J, 3) for one lock, (rows, J, 3) for several (leg_chain takes either)
+        self.offsets = jobs[0].lock.offsets if len(jobs) == 1 else \
+            np.repeat(np.stack([j.lock.offsets for j in jobs]), sizes, axis=0)
+        self.ankle_rest = np.repeat([j.lock._ankle_rest for j in jobs], sizes)
+        self.with_stance = np.repeat([j.lock.stance.cap > 0 for j in jobs], sizes)
+        self.result = self.outputs.copy()  # the caller's outputs stay as they are
+        self.new_roots = self.own = self.stance = None  # set by ``_advance``
+
+    def offsets_of(self, rows: np.ndarray) -> np.ndarray:
+        return self.offsets if self.offsets.ndim == 2 else self.offsets[rows]
+
+
+def _advance(rows: _Rows) -> None:
+    """Where the restyled feet stand against the input's (every row's legs in one forward
     kinematics call each for the input and the restyle): the ankles' height gap sets the
-    pelvis, the rest the stance (``--feet stance``); each lock's state moves on."""
+    pelvis, the rest the stance (``--feet stance``); each lock's state moves on, in order."""
+    jobs = rows.jobs
     if len(jobs) == 1:  # one lock (one performer, or a clip): its own path, floats for one frame
-        job = jobs[0]
-        feet = [(job.lock._feet(job.roots, job.inputs), job.lock._feet(job.roots, job.outputs))]
+        own, restyled = jobs[0].lock._feet(rows.roots, rows.inputs), jobs[0].lock._feet(rows.roots, rows.outputs)
     else:
-        every = [np.arange(len(j.roots)) for j in jobs]
-        offsets = _offsets_of(jobs, every)
-        roots = _rows_of(jobs, every, lambda j: j.roots)
-        own, _, _ = leg_chain(roots, _rows_of(jobs, every, lambda j: j.inputs), offsets)
-        restyled, _, _ = leg_chain(roots, _rows_of(jobs, every, lambda j: j.outputs), offsets)
-        ends = np.cumsum([len(j.roots) for j in jobs])
-        feet = [((own[e - len(j.roots):e, :, 2], own[e - len(j.roots):e, :, 3]),
-                 (restyled[e - len(j.roots):e, :, 2], restyled[e - len(j.roots):e, :, 3])) for j, e in zip(jobs, ends)]
-    for job, (mine, theirs) in zip(jobs, feet):
-        lock, w = job.lock, job.weights
-        job.own = mine  # the input's ankles and balls: the lock's targets and the floor's ceiling
-        gap = theirs[0][..., 1] - job.own[0][..., 1]  # (n, 2)
-        job.new_roots = job.roots.copy()
-        job.new_roots[:, 1] -= lock.pelvis.drops(np.where(w > 0, gap, 0.0), w > 0)
-        job.stance = lock.stance.track(job.t0, job.own, theirs, w > 0)
-        lock.locked_frames += int(np.count_nonzero(w >= 1.0))
+        pos_in, _, _ = leg_chain(rows.roots, rows.inputs, rows.offsets)
+        pos_out, _, _ = leg_chain(rows.roots, rows.outputs, rows.offsets)
+        own, restyled = (pos_in[:, :, 2], pos_in[:, :, 3]), (pos_out[:, :, 2], pos_out[:, :, 3])
+    rows.own = own  # the input's ankles and balls: the lock's targets and the floor's ceiling
+    gap = restyled[0][..., 1] - own[0][..., 1]  # (rows, 2)
+    rows.new_roots = rows.roots.copy()
+    rows.stance = np.zeros((len(rows.roots), 2, 3))
+    planted = rows.weights > 0
+    for job, (lo, hi) in zip(jobs, rows.spans):
+        lock = job.lock
+        rows.new_roots[lo:hi, 1] -= lock.pelvis.drops(np.where(planted[lo:hi], gap[lo:hi], 0.0), planted[lo:hi])
+        stance = lock.stance.track(job.t0, (own[0][lo:hi], own[1][lo:hi]),
+                                   (restyled[0][lo:hi], restyled[1][lo:hi]), planted[lo:hi])
+        if stance is not None:
+            rows.stance[lo:hi] = stance
+        lock.locked_frames += int(np.count_nonzero(job.weights >= 1.0))
 
 
-def _rows_of(jobs: list[LockJob], rows: list[np.ndarray], values) -> np.ndarray:
-    """``values(job)`` (n, ...) of the chosen rows of every job, stacked."""
-    return np.concatenate([values(j)[r] for j, r in zip(jobs, rows)])
-
-
-def _offsets_of(jobs: list[LockJob], rows: list[np.ndarray]) -> np.ndarray:
-    """Each chosen row's performer's bone offsets: (J, 3) when one lock, else (rows, J, 3)."""
-    if len(jobs) == 1:
-        return jobs[0].lock.offsets
-    return np.concatenate([np.broadcast_to(j.lock.offsets, (len(r), *j.lock.offsets.shape)) for j, r in zip(jobs, rows)])
-
-
-def _put_back(jobs: list[LockJob], rows: list[np.ndarray], bones: np.ndarray, solved: np.ndarray) -> None:
-    """Write the stacked rotations ``solved`` (rows, 2, k, 4) of the leg ``bones`` (2, k)
-    into each job's result (copied first: the outputs are the caller's)."""
-    start = 0
-    for j, r in zip(jobs, rows):
-        result = j.result.copy()
-        result[r[:, None, None], bones[None]] = solved[start:start + len(r)]
-        j.result = result
-        start += len(r)
-
-
-def _lock_planted(jobs: list[LockJob], rows: list[np.ndarray]) -> None:
-    """Where a lock weight is above 0: the leg IK onto the input's ankle (or beside it, with
-    the stance), the foot turned as the input's, slerped with the restyled leg by the weight."""
-    keep = [k for k, r in enumerate(rows) if len(r)]
-    jobs, rows = [jobs[k] for k in keep], [rows[k] for k in keep]
-    if not jobs:
+def _lock_planted(rows: _Rows, at: np.ndarray) -> None:
+    """Rows ``at``, where a lock weight is above 0: the leg IK onto the input's ankle (or
+    beside it, with the stance), the foot turned as the input's, slerped with the restyled
+    leg by the weight."""
+    if not len(at):
         return
-    offsets = _offsets_of(jobs, rows)
-    inputs = _rows_of(jobs, rows, lambda j: j.inputs)
-    outputs = _rows_of(jobs, rows, lambda j: j.outputs)
-    pos_in, world_in, _ = leg_chain(_rows_of(jobs, rows, lambda j: j.roots), inputs, offsets)
+    offsets, inputs, outputs = rows.offsets_of(at), rows.inputs[at], rows.outputs[at]
+    pos_in, world_in, _ = leg_chain(rows.roots[at], inputs, offsets)
     ankle, foot, knee = pos_in[:, :, 2], world_in[:, :, 2], pos_in[:, :, 1]  # the input's own
-    if jobs[0].stance is not None:  # beside them, turned as restyled, the knee in its restyled plane
-        stance = _rows_of(jobs, rows, lambda j: j.stance)
+    if rows.with_stance[at[0]]:  # beside them, turned as restyled, the knee in its restyled plane
+        stance = rows.stance[at]
         ankle = ankle + stance[:, :, :2] @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
         foot = rot.multiply(rot.exp_map(stance[:, :, 2:] * np.array([0.0, 1.0, 0.0])), foot)
         knee = None
-    solved = solve_legs(_rows_of(jobs, rows, lambda j: j.new_roots), outputs, offsets, ankle, foot, knee)
+    solved = solve_legs(rows.new_roots[at], outputs, offsets, ankle, foot, knee)
     target = np.concatenate([solved, inputs[:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
-    weights = _rows_of(jobs, rows, lambda j: j.weights)
-    weight = np.broadcast_to(weights[:, :, None], target.shape[:-1])
-    _put_back(jobs, rows, LEG_INDEX, rot.slerp(outputs[:, LEG_INDEX], target, weight))
+    weight = np.broadcast_to(rows.weights[at][:, :, None], target.shape[:-1])
+    rows.result[at[:, None, None], LEG_INDEX[None]] = rot.slerp(outputs[:, LEG_INDEX], target, weight)
 
 
-def _keep_above_floor(jobs: list[LockJob]) -> None:
+def _keep_above_floor(rows: _Rows) -> None:
     """A foot in the air can go through the floor the input's foot cleared: a restyled
     leg straighter than the input's, a foot pitched further down, or (most, measured
     2.7 cm at the 99th percentile on held-out clips without this step) the lowered
@@ -574,39 +571,24 @@ def _keep_above_floor(jobs: list[LockJob]) -> None:
     small lift (measured: an 8-degree pop in one frame). A fully locked foot (weight 1) is
     the input's own, above the floor by definition, and is skipped: most frames of a
     stream."""
-    candidates = [j for j in jobs if (j.weights < 1.0).any()]
-    if not candidates:
+    free = rows.weights < 1.0
+    at = np.flatnonzero(free.any(axis=1))
+    if not len(at):
         return
-    every = [np.arange(len(j.new_roots)) for j in candidates]
-    pos, _, _ = leg_chain(_rows_of(candidates, every, lambda j: j.new_roots),
-                          _rows_of(candidates, every, lambda j: j.result), _offsets_of(candidates, every))
-    chosen, rows, nears = [], [], []
-    start = 0
-    for job in candidates:
-        end = start + len(job.new_roots)
-        ankle, ball = pos[start:end, :, 2, 1], pos[start:end, :, 3, 1]
-        start = end
-        near = (job.weights < 1.0) & ((ankle < job.floor[:, None] + job.lock._ankle_rest + FLOOR_MARGIN) | (
-            ball < job.floor[:, None] + FLOOR_MARGIN))
-        r = np.flatnonzero(near.any(axis=1))
-        if len(r):
-            chosen.append(job)
-            rows.append(r)
-            nears.append(near[r])
-    if not chosen:
+    pos, _, _ = leg_chain(rows.new_roots[at], rows.result[at], rows.offsets_of(at))
+    floor, rest = rows.floor[at, None], rows.ankle_rest[at, None]
+    near = free[at] & ((pos[:, :, 2, 1] < floor + rest + FLOOR_MARGIN) | (pos[:, :, 3, 1] < floor + FLOOR_MARGIN))
+    keep = near.any(axis=1)
+    at, near, floor, rest = at[keep], near[keep], floor[keep], rest[keep]
+    if not len(at):
         return
-    offsets = _offsets_of(chosen, rows)
-    roots = _rows_of(chosen, rows, lambda j: j.new_roots)
-    outputs = _rows_of(chosen, rows, lambda j: j.result)
+    roots, outputs, offsets = rows.new_roots[at], rows.result[at], rows.offsets_of(at)
     pos, world, _ = leg_chain(roots, outputs, offsets)
-    own_ankle = _rows_of(chosen, rows, lambda j: j.own[0][..., 1])
-    own_ball = _rows_of(chosen, rows, lambda j: j.own[1][..., 1])
-    below = _rows_of(chosen, rows, lambda j: j.floor)[:, None]
-    rest = np.concatenate([np.full(len(r), j.lock._ankle_rest) for j, r in zip(chosen, rows)])[:, None]
+    own_ankle, own_ball = rows.own[0][at, :, 1], rows.own[1][at, :, 1]
     up = np.maximum(
-        _soft_floor(pos[:, :, 2, 1], np.minimum(below + rest, own_ankle), own_ankle) - pos[:, :, 2, 1],
-        _soft_floor(pos[:, :, 3, 1], np.minimum(below, own_ball), own_ball) - pos[:, :, 3, 1])
-    lift = np.concatenate(nears) & (up > 0)
+        _soft_floor(pos[:, :, 2, 1], np.minimum(floor + rest, own_ankle), own_ankle) - pos[:, :, 2, 1],
+        _soft_floor(pos[:, :, 3, 1], np.minimum(floor, own_ball), own_ball) - pos[:, :, 3, 1])
+    lift = near & (up > 0)
     if not lift.any():
         return
     target = pos[:, :, 2].copy()
@@ -614,7 +596,7 @@ def _keep_above_floor(jobs: list[LockJob]) -> None:
     solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2])
     legs = LEG_INDEX[:, :3]
     weight = np.broadcast_to(lift[:, :, None].astype(float), solved.shape[:-1])
-    _put_back(chosen, rows, legs, rot.slerp(outputs[:, legs], solved, weight))
+    rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
 
 
 def _soft_floor(height: np.ndarray, floor: np.ndarray, own: np.ndarray) -> np.ndarray:
