@@ -24,8 +24,9 @@ Per tick, in this order (the order is what makes fake-clock replays exact):
   1. apply queued control commands, swap in a newly loaded model;
   2. collect finished inference results (under a virtual clock: wait for all of them);
   3. poll every source and cut words; submit this tick's words as ONE batch;
-  4. render one frame per session (the correction low-pass and the foot lock of all
-     sessions in one vectorised pass each) and emit it to its sinks (VMC, input VMC, recorder);
+  4. render one frame per session (the seam blender's render, the correction low-pass and
+     the foot lock of all sessions in one vectorised pass each) and emit it to its sinks
+     (VMC, input VMC, recorder);
   5. every ``status_interval`` seconds, log one status line per performer.
 """
 

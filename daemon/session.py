@@ -37,7 +37,7 @@ from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, solve_
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
-from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter
+from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, render_planned
 
 from .status import LatencyWindow
 
@@ -60,25 +60,26 @@ class OutputFrame:
 @dataclass(eq=False)
 class PendingFrame:
     """A new output frame from ``Session.begin_render`` to ``finish_render``: the seam
-    blender's output, to be low-passed and foot-locked with the other performers' frames of
-    the tick (``settle_frames``)."""
+    blender's planned runs, to be rendered, low-passed and foot-locked with the other
+    performers' frames of the tick (``settle_frames``)."""
 
     index: int
     arrival: float
     input_root: np.ndarray
     input_rotations: np.ndarray  # (J, 4)
-    blended: np.ndarray  # (J, 4)
+    runs: list  # SeamBlender.plan_block's
     lock: LockJob | None = None  # the foot lock's job, solved
 
 
 def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> None:
-    """The stages after the seam blender for one new frame of each session, each stage one
-    vectorised pass over all of them: the correction low-pass, then the foot lock and the
+    """The rest of one new frame of each session, each stage one vectorised pass over all
+    of them: the seam blender's render, the correction low-pass, then the foot lock and the
     pelvis height. Sets each pending frame's ``lock`` (its solved job)."""
     if not pending:
         return
-    smoothed = filter_frames([s.smoothing for s in sessions], np.stack([p.input_rotations for p in pending]),
-                             np.stack([p.blended for p in pending]))
+    inputs = np.stack([p.input_rotations for p in pending])
+    blended = render_planned([(s.blender, p.runs, inputs[k:k + 1]) for k, (s, p) in enumerate(zip(sessions, pending))])
+    smoothed = filter_frames([s.smoothing for s in sessions], inputs, np.concatenate(blended))
     for k, (session, frame) in enumerate(zip(sessions, pending)):
         frame.lock = session.feet.plan(frame.index, frame.input_root, frame.input_rotations[None], smoothed[k:k + 1])
     solve_lock_jobs([frame.lock for frame in pending])
@@ -240,7 +241,7 @@ class Session:
         return self.finish_render(step)
 
     def begin_render(self, drain: bool = False) -> "PendingFrame | OutputFrame | None":
-        """``render`` up to the seam blender: a new frame is returned pending (for
+        """``render`` up to the seam blender's plan: a new frame is returned pending (for
         ``settle_frames``), anything else as ``render`` returns it."""
         newest = self.cutter.frames_seen - 1
         target = newest - self.settings.delay
@@ -278,10 +279,10 @@ class Session:
         t = self.out_t
         _, arrival, root, input_rot = self._input(t)
         active = (not self.bypass) and self.blender.serving_word(t) >= self._resume_end
-        rotations = self.blender.render(t, input_rot, self.intensity, active)
+        runs = self.blender.plan_block(t, input_rot[None], self.intensity, active)
         self.out_t = t + 1
         self.frames_out += 1
-        return PendingFrame(t, arrival, root, input_rot, rotations)
+        return PendingFrame(t, arrival, root, input_rot, runs)
 
     def finish_render(self, pending: PendingFrame) -> OutputFrame:
         """The frame ``begin_render`` left pending, settled (``settle_frames``)."""

@@ -126,7 +126,7 @@ class BlendSettings:
         return self.word_length + self.crossfade_frames
 
 
-def _spring_at(offset: np.ndarray, c2: np.ndarray, omega: float, k) -> np.ndarray:
+def _spring_at(offset: np.ndarray, c2: np.ndarray, omega, k) -> np.ndarray:
     """A critically damped spring pulling ``offset`` to zero, k frames on, in closed form:
     x(k) = (x0 + c2 k) e^(-w k) with c2 = v0 + w x0."""
     return (offset + c2 * k) * np.exp(-omega * k)
@@ -138,6 +138,13 @@ def _spring(offset: np.ndarray, velocity: np.ndarray, omega: float, k: int):
     k = np.float64(k)
     fade = np.exp(-omega * k)
     return (offset + c2 * k) * fade, (velocity - omega * c2 * k) * fade
+
+
+def _pose(factors: tuple) -> np.ndarray:
+    """A pose kept as two factors: ("offset", rotation vector, pose) or ("rotation",
+    quaternion, pose) -> their product."""
+    kind, left, right = factors
+    return rot.multiply(rot.exp_map(left) if kind == "offset" else left, right)
 
 
 def _is_input(mix) -> bool:
@@ -167,10 +174,14 @@ class SeamBlender:
         # previous frame; a critically damped spring pulls it to zero.
         self._offset = np.zeros((num_bones, 3))
         self._offset_velocity = np.zeros((num_bones, 3))
-        self._shown: np.ndarray | None = None  # restyled pose shown for the previous frame
+        # The restyled pose shown for the previous frame, and the last pose from a word
+        # (with ``_last_input``, its input: their ratio is carried on), each kept as the
+        # two factors of a product (``_pose``) and multiplied out only when needed, at a
+        # switch of word or when the words stop: not every frame.
+        self._shown: tuple | None = None
         self._residual = rot.identity((num_bones,))  # restyled * input^-1 while no word
-        self._last_restyled: np.ndarray | None = None  # the last pose from a word, and
-        self._last_input: np.ndarray | None = None  # its input: their ratio is carried on
+        self._last_restyled: tuple | None = None
+        self._last_input: np.ndarray | None = None
         self._omega = 0.0 if not settings.decay_frames else 1.0 / float(settings.decay_frames)
         self.mix = 0.0
         self.late_frames = 0
@@ -198,14 +209,21 @@ class SeamBlender:
     def render_block(self, t0: int, inputs: np.ndarray, intensity: float = 1.0, active: bool = True) -> np.ndarray:
         """Output rotations (n, J, 4) for frames t0 .. t0+n-1 given their inputs (n, J, 4).
 
-        Two passes: the first walks the runs (one per serving word) and carries the
-        blender's state from run to run with work the size of one pose per run; the
-        second renders every frame of the block in a few vectorised operations. A whole
-        clip costs a handful of array operations, not a handful per word."""
+        Two passes: the first (``plan_block``) walks the runs (one per serving word) and
+        carries the blender's state from run to run with work the size of one pose per
+        run; the second (``render_planned``) renders every frame of the block in a few
+        vectorised operations. A whole clip costs a handful of array operations, not a
+        handful per word."""
         inputs = np.asarray(inputs, dtype=np.float64)
-        runs = self._plan(t0, inputs, intensity, active)
+        return render_planned([(self, self.plan_block(t0, inputs, intensity, active), inputs)])[0]
+
+    def plan_block(self, t0: int, inputs: np.ndarray, intensity: float = 1.0, active: bool = True) -> list:
+        """``render_block``'s first pass: the blender's state moves on over frames
+        t0 .. t0+n-1 and the runs to render are returned (``render_planned`` renders the
+        runs of many blenders at once: the daemon's performers of a tick)."""
+        runs = self._plan(t0, np.asarray(inputs, dtype=np.float64), intensity, active)
         self._forget_before(self.serving_word(t0 + len(inputs) - 1))
-        return self._render(runs, inputs)
+        return runs
 
     def _plan(self, t0: int, inputs: np.ndarray, intensity: float, active: bool) -> list:
         """Pass 1: per run (start, length, restyle, mix), the state carried to the next."""
@@ -236,21 +254,21 @@ class SeamBlender:
         the word's frames under the seam spring's offset (see ``_spring``)."""
         if word is None:
             if self._serving is not None and self._last_restyled is not None:
-                self._residual = rot.multiply(self._last_restyled, rot.inverse(self._last_input))
+                self._residual = rot.multiply(_pose(self._last_restyled), rot.inverse(self._last_input))
             self._serving = None
-            self._shown = rot.multiply(self._residual, last_input)
+            self._shown = ("rotation", self._residual, last_input)
             return ("residual", self._residual)
         index = t - (end - self.settings.word_length + 1)
         if self._omega == 0.0:
-            self._offset[:] = 0.0
+            self._offset = np.zeros_like(self._offset)
         elif end != self._serving and self._shown is not None and index > 0:
             # Switch of word: carry the new word onto what was shown a frame ago.
             # The offset's velocity carries over, so the motion does not kink either.
-            self._offset = rot.log_map(rot.multiply(self._shown, rot.inverse(word[index - 1])))
+            self._offset = rot.log_map(rot.multiply(_pose(self._shown), rot.inverse(word[index - 1])))
         self._serving = end
         offset, c2 = self._offset, self._offset_velocity + self._omega * self._offset
         self._offset, self._offset_velocity = _spring(offset, self._offset_velocity, self._omega, n)
-        self._shown = rot.multiply(rot.exp_map(self._offset), word[index + n - 1])
+        self._shown = ("offset", self._offset, word[index + n - 1])
         self._last_restyled, self._last_input = self._shown, last_input
         return ("word", word[index:index + n], offset, c2)
 
@@ -270,32 +288,40 @@ class SeamBlender:
             return 0.0
         return mix
 
-    def _render(self, runs: list, inputs: np.ndarray) -> np.ndarray:
-        """Pass 2: every frame of the planned runs at once."""
-        out = inputs.copy()
-        word_runs = [r for r in runs if r[2][0] == "word" and not _is_input(r[3])]
-        if word_runs:
-            frames = np.concatenate([r[2][1] for r in word_runs])
-            k = np.concatenate([np.arange(1, r[1] + 1, dtype=np.float64) for r in word_runs])[:, None, None]
-            lengths = [r[1] for r in word_runs]
-            offset = np.repeat(np.stack([r[2][2] for r in word_runs]), lengths, axis=0)
-            c2 = np.repeat(np.stack([r[2][3] for r in word_runs]), lengths, axis=0)
-            poses = rot.multiply(rot.exp_map(_spring_at(offset, c2, self._omega, k)), frames)
-            at = np.concatenate([np.arange(r[0], r[0] + r[1]) for r in word_runs])
-            out[at] = poses
-        for start, n, restyle, _mix in runs:
-            if restyle[0] == "residual" and not _is_input(_mix):
-                out[start:start + n] = rot.multiply(restyle[1], inputs[start:start + n])
-        blends = [r for r in runs if not np.isscalar(r[3])]
-        if blends:
-            at = np.concatenate([np.arange(r[0], r[0] + r[1]) for r in blends])
-            mix = np.concatenate([r[3] for r in blends])
-            out[at] = rot.slerp(inputs[at], out[at], np.repeat(mix[:, None], self.num_bones, 1))
-        return out
-
     def _forget_before(self, end: int) -> None:
         for old in [e for e in self._words if e < end]:
             del self._words[old]
+
+
+def render_planned(items: list[tuple[SeamBlender, list, np.ndarray]]) -> list[np.ndarray]:
+    """``render_block``'s second pass for one or many blenders: (blender, its planned runs,
+    their inputs (n, J, 4)) -> output rotations (n, J, 4) each, every frame of every item
+    in a few vectorised operations (the daemon renders one frame of each performer a
+    tick: one call for all of them, where numpy's per-call cost was most of the work)."""
+    inputs = np.concatenate([np.asarray(i, dtype=np.float64) for _, _, i in items])
+    bases = np.cumsum([0] + [len(i) for _, _, i in items])
+    runs = [(blender, base + start, n, restyle, mix)
+            for (blender, planned, _), base in zip(items, bases) for start, n, restyle, mix in planned]
+    out = inputs.copy()
+    from_words = [r for r in runs if r[3][0] == "word" and not _is_input(r[4])]
+    if from_words:
+        lengths = [n for _, _, n, _, _ in from_words]
+        frames = np.concatenate([restyle[1] for _, _, _, restyle, _ in from_words])
+        k = np.concatenate([np.arange(1, n + 1, dtype=np.float64) for n in lengths])[:, None, None]
+        offset = np.repeat(np.stack([restyle[2] for _, _, _, restyle, _ in from_words]), lengths, axis=0)
+        c2 = np.repeat(np.stack([restyle[3] for _, _, _, restyle, _ in from_words]), lengths, axis=0)
+        omega = np.repeat([blender._omega for blender, _, _, _, _ in from_words], lengths)[:, None, None]
+        at = np.concatenate([np.arange(start, start + n) for _, start, n, _, _ in from_words])
+        out[at] = rot.multiply(rot.exp_map(_spring_at(offset, c2, omega, k)), frames)
+    for _, start, n, restyle, mix in runs:
+        if restyle[0] == "residual" and not _is_input(mix):
+            out[start:start + n] = rot.multiply(restyle[1], inputs[start:start + n])
+    blends = [r for r in runs if not np.isscalar(r[4])]
+    if blends:
+        at = np.concatenate([np.arange(start, start + n) for _, start, n, _, _ in blends])
+        mix = np.concatenate([mix for _, _, _, _, mix in blends])
+        out[at] = rot.slerp(inputs[at], out[at], np.broadcast_to(mix[:, None], out[at].shape[:2]))
+    return [out[lo:hi] for lo, hi in zip(bases[:-1], bases[1:])]
 
 
 class Restyled(NamedTuple):

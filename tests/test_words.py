@@ -5,7 +5,7 @@ import pytest
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
-from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, restyle_stream
+from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, render_planned, restyle_stream
 
 J = 22
 
@@ -136,6 +136,43 @@ def test_frame_by_frame_rendering_equals_block_rendering():
             t = now - settings.delay
             out.append(smoothing.apply(motion[t][None], blender.render(t, motion[t])[None])[0])
     assert rot.angle_between(np.stack(out), block[:len(out)]).max() < 1e-9
+
+
+def test_blenders_rendered_together_a_frame_a_tick_equal_each_rendered_alone():
+    """The daemon renders every performer's frame of a tick in one call (``render_planned``):
+    three streams on other word grids, one faded to pass-through half-way and back, one at
+    half intensity with a faster seam spring; each equals its own blender rendering its
+    frames alone."""
+    motions = [smooth_motion(300, seed=k) for k in range(3)]
+    restyle = biased_restyler(seed=2)
+    settings = [BlendSettings(hop=10, phase=p, decay_frames=d) for p, d in ((0, None), (3, None), (7, 4.0))]
+    intensity = [1.0, 1.0, 0.5]
+    pairs = [(SeamBlender(s, J), SeamBlender(s, J)) for s in settings]
+    cutters = [WordCutter(10, phase=s.phase) for s in settings]
+    together, alone = [[] for _ in motions], [[] for _ in motions]
+    delay = settings[0].delay
+    mixes = []
+    for now in range(300):
+        for k, (motion, cutter) in enumerate(zip(motions, cutters)):
+            made = cutter.push(motion[now])
+            if made is not None:
+                word = restyle(made[1][None])[0]
+                pairs[k][0].add_word(made[0], word)
+                pairs[k][1].add_word(made[0], word)
+        t = now - delay
+        if t < 0:
+            continue
+        active = [True, not 120 <= t < 150, True]
+        items = [(a, a.plan_block(t, m[t][None], i, on), m[t][None])
+                 for (a, _), m, i, on in zip(pairs, motions, intensity, active)]
+        mixes.append(pairs[1][0].mix)
+        for k, frame in enumerate(render_planned(items)):
+            together[k].append(frame[0])
+            alone[k].append(pairs[k][1].render(t, motions[k][t], intensity[k], active[k]))
+    for k in range(3):
+        assert rot.angle_between(np.stack(together[k]), np.stack(alone[k])).max() < 1e-9
+        assert rot.angle_between(np.stack(together[k])[200:], motions[k][200:300 - delay]).max() > 1.0  # restyled
+    assert min(mixes[120:200]) < 1e-9 and mixes[-1] == 1.0  # the second stream faded out and came back
 
 
 def test_phase_shifts_the_word_grid_and_the_blend_follows_it():
