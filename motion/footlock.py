@@ -27,6 +27,12 @@ construction. The target follows the input's ankle at every frame (not a positio
 at touch-down), so a mistaken contact costs nothing worse than the input's own leg for
 a few frames.
 
+Many performers at once (``FootLock.plan`` + ``solve_lock_jobs``): ``apply`` is a plan
+(the lock's weights and floor for the frames) and a solve; the daemon plans each
+performer's frame of a tick and solves them all in one vectorised pass, each frame with
+its own performer's proportions (per-row bone offsets in ``leg_chain``/``solve_legs``),
+each lock's pelvis and stance state advanced in order.
+
 Floor (``_keep_above_floor``): a foot in the air whose ankle would go below its
 standing height over the floor, or whose ball would go below the floor, is lifted onto it
 by the same IK.

@@ -158,8 +158,9 @@ class SeamBlender:
     ``render_block`` renders consecutive frames at once: within a run of frames served by
     one word, the seam offset is a geodesic power (slerp from identity to the offset,
     s = decay ** n) and the mix a clipped ramp, both closed-form, so a run costs a few
-    vectorised operations instead of a Python step per frame. The daemon renders blocks
-    of one frame, ``restyle`` whole clips, through the same code.
+    vectorised operations instead of a Python step per frame. ``restyle`` renders whole
+    clips, the daemon one frame of every performer per tick (``plan_block`` per blender,
+    then one ``render_planned`` for all), through the same code.
     """
 
     def __init__(self, settings: BlendSettings, num_bones: int, phase: int | None = None):
