@@ -286,7 +286,8 @@ class Daemon:
                 session.skeleton_changed = False
                 sinks.set_offsets(session.skeleton.offsets)
             steps.append(session.begin_render(drain=session.source.finished))
-        # Every performer's new frame through the low-pass and the foot lock in one pass.
+        # Every performer's new frame through the blender's render, the low-pass and the
+        # foot lock, each one vectorised pass for all.
         new = [(session, step) for session, step in zip(self.sessions, steps) if isinstance(step, PendingFrame)]
         settle_frames([session for session, _ in new], [step for _, step in new])
         for session, sinks, step in zip(self.sessions, self.sinks, steps):

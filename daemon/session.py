@@ -232,8 +232,9 @@ class Session:
         """The output frame for this tick: a new one, the held last one, or None before
         the first ``delay`` frames have arrived. ``drain`` (the source has ended): its
         held frames (see ``ingest``) carry the last ``delay`` real frames out, and nothing
-        past the last real frame is sent. The engine runs the two halves itself, so that
-        one ``solve_lock_jobs`` call serves every performer of the tick."""
+        past the last real frame is sent. The engine runs the halves itself (``begin_render``,
+        ``settle_frames``, ``finish_render``), so one ``settle_frames`` serves every
+        performer of the tick."""
         step = self.begin_render(drain)
         if not isinstance(step, PendingFrame):
             return step
