@@ -36,7 +36,7 @@ from torch import nn
 from stylecast.motion.humanoid import HUMANOID_PARENTS
 
 from .conditioning import AdaIN, StyleCodes
-from .networks import apply_correction, linear_upsample_matrix, smooth_projection
+from .networks import apply_correction, register_fixed_matrices
 
 PARTITIONS = 3  # the bone itself, its parent, its children
 
@@ -134,10 +134,7 @@ class GraphStyleGenerator(nn.Module):
         self.joint_embedding = nn.Parameter(torch.zeros(1, j, h, 1))
         self.down = _time_conv(h, h, 4, stride=2, padding=1)
         self.blocks = nn.ModuleList([GraphBlock(h, j, adjacency, cfg.code_dim) for _ in range(cfg.g_blocks)])
-        half = (cfg.frames + 2 - 4) // 2 + 1  # length after the strided conv
-        self.register_buffer("upsample", linear_upsample_matrix(half), persistent=False)
-        self.register_buffer("smooth", smooth_projection(cfg.frames, cfg.correction_knots)
-                             if cfg.correction_knots else None, persistent=False)
+        register_fixed_matrices(self, cfg)
         self.fuse = _time_conv(2 * h, h, 3)
         self.head = nn.Conv1d(h, c, 1)
         self.act = nn.LeakyReLU(0.2)

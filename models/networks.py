@@ -126,6 +126,16 @@ def smooth_projection(frames: int, knots: int) -> torch.Tensor:
     return torch.from_numpy((b @ np.linalg.solve(b.T @ b, b.T)).astype(np.float32))
 
 
+def register_fixed_matrices(module: nn.Module, cfg: NetworkConfig) -> None:
+    """The fixed matrices of every generator, buffers rebuilt from ``cfg`` (never saved):
+    ``upsample`` from the strided conv's half rate back to the word's frames, and
+    ``smooth``, the B-spline projection of the correction (None when off)."""
+    half = (cfg.frames + 2 - 4) // 2 + 1  # length after the strided conv (kernel 4, stride 2, padding 1)
+    module.register_buffer("upsample", linear_upsample_matrix(half), persistent=False)
+    module.register_buffer("smooth", smooth_projection(cfg.frames, cfg.correction_knots)
+                           if cfg.correction_knots else None, persistent=False)
+
+
 def apply_correction(x: torch.Tensor, delta: torch.Tensor, smooth: torch.Tensor | None, scale, combine) -> torch.Tensor:
     """Every generator's last step: the raw correction (B, F, T) projected on the B-spline
     (``smooth``, None = free), scaled by the intensity (``scale`` (B, 1, 1) or None) and put
@@ -164,10 +174,7 @@ class CorrectionGenerator(nn.Module):
         self.stem = _conv(f, h, k)
         self.down = nn.Conv1d(h, h, 4, stride=2, padding=1, padding_mode="replicate")
         self.blocks = self.build_blocks(cfg)
-        half = (cfg.frames + 2 - 4) // 2 + 1  # length after the strided conv
-        self.register_buffer("upsample", linear_upsample_matrix(half), persistent=False)
-        self.register_buffer("smooth", smooth_projection(cfg.frames, cfg.correction_knots)
-                             if cfg.correction_knots else None, persistent=False)
+        register_fixed_matrices(self, cfg)
         self.fuse = _conv(2 * h, h, 3)
         self.head = nn.Conv1d(h, f, 1)
         self.act = nn.LeakyReLU(0.2)
