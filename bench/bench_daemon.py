@@ -4,6 +4,7 @@
     python bench/bench_daemon.py latency seams  # a subset: latency capacity cpu seams presets footlock
     python bench/bench_daemon.py presets 8 10   # presets only, 8 performers, 10 s per run
     python bench/bench_daemon.py capacity 5     # capacity only, 5 s per run
+    python bench/bench_daemon.py capacity-workers 5  # the same over one process per core (serve --workers)
 
 Latency: one performer replayed at 60 fps whose hips x position encodes the frame index;
 the daemon sends VMC over loopback to a receiver *process* (so its timestamps do not
@@ -14,7 +15,8 @@ shown beside it.
 
 Capacity (hop 15): N performers, each to its own port, drained by a receiver process;
 N grows until a run drops an output tick (a tick that started more than a whole frame
-period late) or shows late words. CPU: process CPU time per performer-second for bypass
+period late) or shows late words; ``capacity-workers`` spreads them over one process per
+core, each a whole daemon over its slice, as ``serve --workers`` does. CPU: process CPU time per performer-second for bypass
 and restyle, against a plain python-osc relay (parse every datagram with python-osc,
 forward the same bytes) fed the daemon's own packets at the same rate.
 
@@ -37,6 +39,7 @@ every frame, so the boundaries counted are those of the 60-frame grid (frames 60
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import socket
 import sys
 import time
@@ -239,8 +242,8 @@ def bench_presets(model, motion, n=8, seconds=8.0):
            "goal p99", "met"), rows)
 
 
-def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relaxed", legacy=False):
-    port = free_ports(n)
+def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relaxed", legacy=False, port=None):
+    port = free_ports(n) if port is None else port
     rx = Receiver([port + k for k in range(n)])
     d = make_daemon(n, hop, model, motion, port, bypass=bypass, latency=latency, legacy=legacy)
     cpu0, wall0 = time.process_time(), time.monotonic()
@@ -255,15 +258,57 @@ def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relax
                 calls=np.percentile(d.worker.call_ms, 99) if d.worker.call_ms else 0.0)
 
 
-def bench_capacity(model, motion, seconds=8.0):
+def _capacity_in_process(n, port, seconds, hop, latency, start, conn):
+    """One worker of a ``--workers`` capacity run: a whole daemon over its slice, started
+    with the others (``start``: a barrier passed once every worker has its model)."""
+    model, _ = restyler()
+    motion = base_motion()
+    start.wait()
+    conn.send(run_capacity(n, model, motion, seconds, hop=hop, latency=latency, port=port))
+    conn.close()
+
+
+def run_capacity_workers(n, workers, seconds, hop=0, latency="default"):
+    """``run_capacity`` as ``serve --workers N`` runs it: each process a whole daemon over a
+    contiguous slice of the performers (daemon/workers.py), all at once; figures combined."""
+    from stylecast.daemon.workers import split
+
+    ctx = mp.get_context("spawn")
+    slices = split(n, workers)
+    port = free_ports(n)  # performer k to port + k, whichever worker serves it
+    start = ctx.Barrier(len(slices))
+    procs, pipes = [], []
+    for r in slices:
+        parent, child = ctx.Pipe(duplex=False)
+        proc = ctx.Process(target=_capacity_in_process, args=(len(r), port + r.start, seconds, hop, latency, start,
+                                                              child))
+        proc.start()
+        procs.append(proc)
+        pipes.append(parent)
+    parts = [pipe.recv() for pipe in pipes]
+    for proc in procs:
+        proc.join()
+    total = {key: sum(p[key] for p in parts) for key in ("dropped", "late", "cpu", "received", "sent")}
+    worst = {key: max(p[key] for p in parts) for key in ("delay", "p99", "tick99", "wall", "calls")}
+    return dict(n=n, **total, **worst)
+
+
+def bench_capacity(model, motion, seconds=8.0, workers=1):
     """Before issue 12 (hop 15, delay 15, no slack planning: the criterion was zero dropped
     ticks, late words were faded) against the default preset (zero dropped ticks AND
-    zero late words; the delay may grow, shown)."""
-    for label, hop, latency, legacy, strict in (("before issue 12: hop 15, delay 15", 15, "relaxed", True, False),
-                                                ("--latency default", 0, "default", False, True)):
+    zero late words; the delay may grow, shown). ``workers`` > 1: the default preset only,
+    the performers spread over that many processes as ``serve --workers`` does."""
+    runs = (("before issue 12: hop 15, delay 15", 15, "relaxed", True, False),
+            ("--latency default", 0, "default", False, True))
+    if workers > 1:
+        runs = ((f"--latency default --workers {workers}", 0, "default", False, True),)
+    for label, hop, latency, legacy, strict in runs:
         rows, best = [], 0
         for n in (4, 8, 16, 24, 32, 40, 48, 64):
-            r = run_capacity(n, model, motion, seconds, hop=hop, latency=latency, legacy=legacy)
+            if workers > 1:
+                r = run_capacity_workers(n, workers, seconds, hop=hop, latency=latency)
+            else:
+                r = run_capacity(n, model, motion, seconds, hop=hop, latency=latency, legacy=legacy)
             ok = r["dropped"] == 0 and (r["late"] == 0 or not strict)
             rows.append((n, r["dropped"], r["late"], r["delay"], f"{r['tick99']:.1f}", f"{r['p99']:.1f}",
                          f"{r['calls']:.1f}", f"{r['cpu'] / r['wall'] * 100:.0f}%", f"{r['received']}/{r['sent']}",
@@ -507,6 +552,8 @@ def main(argv):
         bench_compute(model, motion)
     if "capacity" in which:
         bench_capacity(model, motion, numbers[0] if numbers else 8.0)
+    if "capacity-workers" in which:
+        bench_capacity(model, motion, numbers[0] if numbers else 8.0, workers=os.cpu_count() or 2)
     if "cpu" in which:
         bench_cpu(model, motion)
     if "presets" in which:
