@@ -128,7 +128,8 @@ def soak_receiver(socks, duration, ready, results) -> None:
 
 
 def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0, restyler: str = "auto",
-         hop: int = 15, log=print) -> dict:
+         hop: int = 0, log=print) -> dict:
+    """``hop`` 0: serve's default settings (the ``--latency default`` preset)."""
     from tests.hardening_junk import bind_consecutive
 
     from stylecast.motion.clock import RealClock
@@ -192,7 +193,7 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
 
     daemon.sinks[0].frame_taps.append(tap)
     log(f"soak: {minutes:g} min, {performers} performers ({', '.join(Path(p).name for p in paths)}), "
-        f"restyler {daemon.style}, hop {hop}, machine {os.cpu_count()} CPUs load {os.getloadavg()[0]:.1f}")
+        f"restyler {daemon.style}, hop {daemon.settings.hop} delay {daemon.settings.delay}, machine {os.cpu_count()} CPUs load {os.getloadavg()[0]:.1f}")
     try:
         daemon.start()
         state["t0"] = daemon.tick_time(0)
