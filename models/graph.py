@@ -25,6 +25,10 @@ fixed linear upsampling, fuse with the full-rate skip, zero-initialised head (pe
 H -> C) giving a correction that ``networks.apply_correction`` projects on the cubic
 B-spline and puts on the input: the identity map at the start, and no jitter whatever it
 learns. Same forward signature, so the trainer, the restyler and the daemon take either.
+
+Measured against the temporal generator (two seeds, ``models/checkpoints/MODEL_CARD.md``):
+weaker on every figure of ``stylecast eval`` and 3.7x its inference cost, so the shipped
+multi-style model keeps the temporal one.
 """
 
 from __future__ import annotations
