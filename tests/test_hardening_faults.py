@@ -338,7 +338,12 @@ def test_ctrl_c_closes_a_valid_recording(tmp_path):
             break
     time.sleep(1.5)
     os.killpg(proc.pid, signal.SIGINT)  # what a terminal's Ctrl-C does: the whole process group
-    _, err = proc.communicate(timeout=60)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:  # say where it stuck: every line it wrote (once seen in CI)
+        proc.kill()
+        _, err = proc.communicate()
+        pytest.fail("serve ignored Ctrl-C for 60 s; it wrote:\n" + "".join(lines) + err)
     err = "".join(lines) + err
     assert proc.returncode == 0, err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err
