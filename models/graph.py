@@ -40,7 +40,7 @@ from torch import nn
 from stylecast.motion.humanoid import HUMANOID_PARENTS
 
 from .conditioning import AdaIN, StyleCodes
-from .networks import apply_correction, register_fixed_matrices
+from .networks import apply_correction, register_fixed_matrices, zero_head
 
 PARTITIONS = 3  # the bone itself, its parent, its children
 
@@ -141,10 +141,8 @@ class GraphStyleGenerator(nn.Module):
         self.blocks = nn.ModuleList([GraphBlock(h, j, adjacency, cfg.code_dim) for _ in range(cfg.g_blocks)])
         register_fixed_matrices(self, cfg)
         self.fuse = _time_conv(2 * h, h, 3)
-        self.head = nn.Conv1d(h, c, 1)
+        self.head = zero_head(h, c)
         self.act = nn.LeakyReLU(0.2)
-        nn.init.zeros_(self.head.weight)
-        nn.init.zeros_(self.head.bias)
 
     def forward(self, x: torch.Tensor, weights: torch.Tensor, intensity: torch.Tensor | None = None) -> torch.Tensor:
         """x (B, J*C, T); weights (B, S) style mix per word; intensity (B,) or None (= 1)."""

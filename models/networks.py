@@ -136,6 +136,16 @@ def register_fixed_matrices(module: nn.Module, cfg: NetworkConfig) -> None:
                            if cfg.correction_knots else None, persistent=False)
 
 
+def zero_head(cin: int, cout: int) -> nn.Conv1d:
+    """A generator's last layer (1x1), its weights zero: the correction starts at nothing,
+    so a new generator is the identity map. (Made as a plain conv first, so it draws from
+    torch's generator as before: a seed gives the shipped models again.)"""
+    head = nn.Conv1d(cin, cout, 1)
+    nn.init.zeros_(head.weight)
+    nn.init.zeros_(head.bias)
+    return head
+
+
 def apply_correction(x: torch.Tensor, delta: torch.Tensor, smooth: torch.Tensor | None, scale, combine) -> torch.Tensor:
     """Every generator's last step: the raw correction (B, F, T) projected on the B-spline
     (``smooth``, None = free), scaled by the intensity (``scale`` (B, 1, 1) or None) and put
@@ -176,10 +186,8 @@ class CorrectionGenerator(nn.Module):
         self.blocks = self.build_blocks(cfg)
         register_fixed_matrices(self, cfg)
         self.fuse = _conv(2 * h, h, 3)
-        self.head = nn.Conv1d(h, f, 1)
+        self.head = zero_head(h, f)
         self.act = nn.LeakyReLU(0.2)
-        nn.init.zeros_(self.head.weight)
-        nn.init.zeros_(self.head.bias)
 
     def build_conditioning(self, cfg) -> None:
         """Modules that condition the blocks (none for the pair generator)."""
