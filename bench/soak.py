@@ -3,6 +3,12 @@ an hour, memory and latency sampled every minute. Not a test (tests/test_hardeni
 runs a one-minute version).
 
     nohup python bench/soak.py --minutes 60 --performers 4 > /tmp/soak.log 2>&1 &
+    nohup python bench/soak.py --minutes 60 --performers 16 --workers 2 > /tmp/soak.log 2>&1 &
+
+``--workers N`` runs the performers as ``serve --workers N`` does: N processes, each a
+whole daemon over a contiguous slice of the performers (its own model, clock, sockets and
+receiver), started together; each prints its own samples and the figures are combined at
+the end.
 
 Each performer is a ``bvh://...?loop=1`` source (the real driver: BVH read, humanoid
 retarget, 60 fps replay) of a different Bandai walk; the daemon sends VMC to one port per
@@ -39,9 +45,16 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "bench"))  # also when loaded by path (tests/test_hardening_soak.py)
+from machine import describe  # noqa: E402 (bench/machine.py)
 DATA = REPO.parent / "shared" / "data" / "bandai"
 CHECKPOINT = REPO / "models" / "checkpoints" / "normal2exhausted.safetensors"
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # noqa: E402 (the one definition)
+from stylecast.drivers.vmc.osc_packets import encode_message  # noqa: E402
+from stylecast.drivers.vmc.vmc_out import TIME_ADDRESS  # noqa: E402
+
+# The bytes of the OSC message /VMC/Ext/T up to its float argument (the last 4 bytes).
+TIME_MESSAGE = encode_message(TIME_ADDRESS, 0.0)[:-4]
 
 
 def proc_status() -> dict:
@@ -75,13 +88,15 @@ def clips(n: int) -> list[str]:
 
 
 def soak_receiver(socks, duration, ready, results) -> None:
-    """Receive VMC; keep (T, arrival - T) per frame per port; report at the end."""
-    import select
+    """Receive VMC; keep (tick index, arrival) per frame per port; report at the end.
 
-    from stylecast.drivers.vmc.vmc_in import VmcParser
+    Only each bundle's /VMC/Ext/T is decoded, found by its bytes: the full parser
+    (VmcParser, tested elsewhere against oscdump) costs a third of a core at 16 performers
+    on this 2-core machine, which would be taken from the daemon being measured."""
+    import select
+    import struct
 
     ports = [s.getsockname()[1] for s in socks]
-    parsers = [VmcParser(f"out{p}") for p in ports]
     data = {p: [] for p in ports}
     for s in socks:
         s.setblocking(False)
@@ -93,13 +108,15 @@ def soak_receiver(socks, duration, ready, results) -> None:
             i = socks.index(s)
             while True:
                 try:
-                    d, addr = s.recvfrom(65536)
+                    d = s.recv(65536)
                 except BlockingIOError:
                     break
                 now = time.monotonic()
-                for f in parsers[i].feed(d, addr, now):
+                at = d.find(TIME_MESSAGE)
+                if at >= 0:
                     # /VMC/Ext/T is the tick index / 60 as float32: recover the exact index
-                    data[ports[i]].append((round(f.sender_time * FPS), now))
+                    sent = struct.unpack_from(">f", d, at + len(TIME_MESSAGE))[0]
+                    data[ports[i]].append((round(sent * FPS), now))
     for s in socks:
         s.close()
     summary = {}
@@ -128,8 +145,10 @@ def soak_receiver(socks, duration, ready, results) -> None:
 
 
 def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0, restyler: str = "auto",
-         hop: int = 0, log=print) -> dict:
-    """``hop`` 0: serve's default settings (the ``--latency default`` preset)."""
+         hop: int = 0, log=print, first: int = 0, start=None) -> dict:
+    """``hop`` 0: serve's default settings (the ``--latency default`` preset). ``first``:
+    the index of this process's first performer (its clips and names follow on from the
+    slices before it); ``start``: a barrier passed once every worker is ready."""
     from tests.hardening_junk import bind_consecutive
 
     from stylecast.motion.clock import RealClock
@@ -141,8 +160,8 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
     if restyler == "auto":
         restyler = str(CHECKPOINT) if CHECKPOINT.exists() else "standin"
     model = load_restyler(restyler)
-    paths = clips(performers)
-    sources = [open_source(f"bvh://{p}?loop=1&name=p{k}", f"p{k}") for k, p in enumerate(paths)]
+    paths = clips(first + performers)[first:]
+    sources = [open_source(f"bvh://{p}?loop=1&name=p{k}", f"p{k}") for k, p in enumerate(paths, start=first)]
     socks = bind_consecutive(performers)
     base = socks[0].getsockname()[1]
     seconds = minutes * 60.0
@@ -171,7 +190,7 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
             "clock_offset_ticks": round(elapsed * FPS - daemon.ticks, 2),
             "tick_late_p99_ms": daemon.tick_lateness.percentile(99) * 1e3,
             "latency_p50_ms": max(p[0] for p in per), "latency_p99_ms": max(p[1] for p in per),
-            "late_frames": sum(p[2] for p in per),
+            "late_frames": sum(p[2] for p in per), "delay": daemon.settings.delay,
             "frames_out": sum(s.frames_out for s in daemon.sessions),
             "faults": daemon.worker.faults, "stale_words": getattr(daemon.worker, "stale_words", 0),
         }
@@ -180,12 +199,12 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
             f"{row['threads']} fds {row['fds']} | latency p50 {row['latency_p50_ms']:6.1f} p99 "
             f"{row['latency_p99_ms']:6.1f} ms | tick late p99 {row['tick_late_p99_ms']:6.1f} ms | ticks "
             f"{row['ticks']} dropped {row['dropped_ticks']} clock offset {row['clock_offset_ticks']:+.2f} | "
-            f"late frames {row['late_frames']} faults {row['faults']}")
+            f"late frames {row['late_frames']} delay {row['delay']} faults {row['faults']}")
 
-    first = daemon.sessions[0].performer
+    sampled = daemon.sessions[0].performer
 
     def tap(frame):
-        if frame.performer == first:
+        if frame.performer == sampled:
             now = time.monotonic()
             if now >= state["next"]:
                 state["next"] += sample_every
@@ -194,6 +213,8 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
     daemon.sinks[0].frame_taps.append(tap)
     log(f"soak: {minutes:g} min, {performers} performers ({', '.join(Path(p).name for p in paths)}), "
         f"restyler {daemon.style}, hop {daemon.settings.hop} delay {daemon.settings.delay}, machine {os.cpu_count()} CPUs load {os.getloadavg()[0]:.1f}")
+    if start is not None:
+        start.wait()
     try:
         daemon.start()
         state["t0"] = daemon.tick_time(0)
@@ -219,6 +240,8 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
         "latency_p50_start_ms": warm["latency_p50_ms"], "latency_p50_end_ms": end["latency_p50_ms"],
         "max_abs_clock_offset_ticks": max(abs(s["clock_offset_ticks"]) for s in samples),
         "dropped_ticks": daemon.dropped_ticks, "ticks": daemon.ticks,
+        "late_frames": end["late_frames"], "late_frames_after_warmup": end["late_frames"] - warm["late_frames"],
+        "delay_start_end": (samples[0]["delay"], end["delay"]),
         "frames_sent": sum(sent), "frames_received": sum(v.get("frames", 0) for v in received.values()),
         "drift_ppm": [round(v.get("drift_ppm", float("nan")), 2) for v in received.values()],
         "threads_start_end": (warm["threads"], end["threads"]), "fds_start_end": (warm["fds"], end["fds"]),
@@ -228,24 +251,71 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
         f"(growth {s['rss_growth_mb']:+.1f} MB, peak {s['peak_mb']:.1f}); latency p99 {s['latency_p99_start_ms']:.1f} "
         f"-> {s['latency_p99_end_ms']:.1f} ms (p50 {s['latency_p50_start_ms']:.1f} -> {s['latency_p50_end_ms']:.1f}); "
         f"clock offset max {s['max_abs_clock_offset_ticks']:.2f} ticks; dropped ticks {s['dropped_ticks']} of "
-        f"{s['ticks']}; frames sent {s['frames_sent']} received {s['frames_received']}; output drift vs the "
+        f"{s['ticks']}; late frames {s['late_frames']} ({s['late_frames_after_warmup']} after warm-up), delay "
+        f"{s['delay_start_end'][0]} -> {s['delay_start_end'][1]}; frames sent {s['frames_sent']} received {s['frames_received']}; output drift vs the "
         f"receiver's clock {s['drift_ppm']} ppm; threads {s['threads_start_end']}, fds {s['fds_start_end']}")
     for k, v in sorted(out["received"].items()):
         log(f"  performer {k}: {json.dumps(v)}")
     return out
 
 
+def _soak_in_process(kwargs, start, conn) -> None:
+    """One worker of a ``--workers`` soak: its lines prefixed, its figures sent back."""
+    tag = f"[p{kwargs['first']}..p{kwargs['first'] + kwargs['performers'] - 1}]"
+    conn.send(soak(**kwargs, start=start, log=lambda line: print(f"{tag} {line}", flush=True)))
+    conn.close()
+
+
+def soak_workers(minutes: float, performers: int, workers: int, sample_every: float = 60.0,
+                 restyler: str = "auto", log=print) -> dict:
+    """The soak as ``serve --workers N`` runs it (daemon/workers.py's ``split``): one whole
+    daemon per contiguous slice, all started at once; the summary combined."""
+    from stylecast.daemon.workers import split
+
+    ctx = mp.get_context("spawn")
+    slices = split(performers, workers)
+    start = ctx.Barrier(len(slices))
+    procs, pipes = [], []
+    for r in slices:
+        parent, child = ctx.Pipe(duplex=False)
+        kwargs = dict(minutes=minutes, performers=len(r), sample_every=sample_every, restyler=restyler,
+                      first=r.start)
+        proc = ctx.Process(target=_soak_in_process, args=(kwargs, start, child))
+        proc.start()
+        procs.append(proc)
+        pipes.append(parent)
+    parts = [pipe.recv() for pipe in pipes]
+    for proc in procs:
+        proc.join()
+    summaries = [part["summary"] for part in parts]
+    added = ("late_frames", "late_frames_after_warmup", "dropped_ticks", "frames_sent", "frames_received")
+    combined = {key: sum(s[key] for s in summaries) for key in added}
+    combined.update(
+        rss_growth_mb=[round(s["rss_growth_mb"], 1) for s in summaries],
+        rss_end_mb=[round(s["rss_end_mb"], 1) for s in summaries],
+        latency_p99_end_ms=max(s["latency_p99_end_ms"] for s in summaries),
+        delay_end=max(s["delay_start_end"][1] for s in summaries),
+        max_abs_clock_offset_ticks=max(s["max_abs_clock_offset_ticks"] for s in summaries))
+    log(f"combined over {len(slices)} processes: {json.dumps(combined)}")
+    return {"workers": parts, "summary": combined}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="Soak the daemon: memory, latency and output clock over time.")
     ap.add_argument("--minutes", type=float, default=60.0)
     ap.add_argument("--performers", type=int, default=4)
+    ap.add_argument("--workers", type=int, default=1, help="processes, as serve --workers (default 1)")
     ap.add_argument("--sample-every", type=float, default=60.0, help="seconds between samples (default 60)")
     ap.add_argument("--restyler", default="auto", help="auto (shipped model if present, else standin), standin, "
                                                        "identity, or a model name/path")
     ap.add_argument("--json", default="", help="also write every figure to this JSON file")
     args = ap.parse_args(argv)
-    result = soak(args.minutes, args.performers, args.sample_every, args.restyler,
-                  log=lambda line: print(line, flush=True))
+    log = lambda line: print(line, flush=True)  # noqa: E731
+    print(f"machine: {describe()}", flush=True)
+    if args.workers > 1:
+        result = soak_workers(args.minutes, args.performers, args.workers, args.sample_every, args.restyler, log)
+    else:
+        result = soak(args.minutes, args.performers, args.sample_every, args.restyler, log=log)
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1, default=str))
     return 0
