@@ -46,7 +46,7 @@ from .commands import apply_command
 from .config import FPS, DaemonConfig
 from .control import ControlServer
 from .inference import InferenceWorker
-from .latency import MAX_SLACK, calibrate, delay_line, slack_for
+from .latency import MAX_SLACK, calibrate, delay_line, lowered_line, slack_for
 from .output import PerformerSinks, open_outputs, recording_path
 from .restylers import load_restyler, model_name, style_label, style_mix, with_direction, with_style
 from .session import PendingFrame, Session, settle_frames
@@ -114,7 +114,8 @@ class Daemon:
         if config.style:
             restyler = with_style(restyler, config.style)
         self.worker = InferenceWorker(restyler, clock=clock.now)
-        self.delay_notes: list[str] = []  # the status lines of delay raises (also logged)
+        self.delay_notes: list[str] = []  # the status lines of delay raises and lowerings (also logged)
+        self._configured_delay = self.settings.delay  # the planner never lowers below it
         self.first_index = first_index
         self.remote = remote
         self.remote_stopped = False
@@ -207,10 +208,24 @@ class Daemon:
                           f"one call on {batch} word(s) takes {seconds * 1e3:.1f} ms")
 
     def _plan_slack(self) -> None:
-        needed = self.worker.planner.needed_slack()
-        if needed is not None:
-            self._raise_slack(needed, f"results ready {self.worker.planner.estimate_ms():.1f} ms after their "
-                                      f"tick (p95)")
+        planner = self.worker.planner
+        needed = planner.needed_slack()
+        if needed is None:
+            return
+        reason = f"results ready {planner.estimate_ms():.1f} ms after their tick (p95)"
+        if needed > self.slack:
+            self._raise_slack(needed, reason)
+        elif planner.can_lower(self.slack, self._configured_delay - self.settings.hop + 1):
+            self._lower_delay(reason)
+
+    def _lower_delay(self, reason: str) -> None:
+        old = self.settings.delay
+        self.settings.delay = old - 1
+        for s in self.sessions:
+            s.set_delay(old - 1)
+        line = lowered_line(reason, old, old - 1)
+        self.delay_notes.append(line)
+        log.info(line)
 
     def _raise_slack(self, needed: int, reason: str) -> None:
         if needed <= self.slack:

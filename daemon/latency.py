@@ -9,10 +9,14 @@ model, the device, the batch and the machine's load, so the daemon does not gues
 * while it runs, the inference worker records for every job how long after its tick's
   scheduled time the result was ready (model call, queueing and contention for the
   CPU together), and ``SlackPlanner`` raises the delay to the smallest safe one when the
-  recent 95th percentile no longer fits, with ONE status line saying why.
+  recent 95th percentile no longer fits, with ONE status line saying why;
+* and once the load that forced a raise has passed (the recent 95th percentile would
+  leave ``LOWER_SPARE`` frames unused, for ``LOWER_AFTER_CHECKS`` checks in a row) it
+  lowers the delay again, one frame at a time and never below the configured one, so a
+  burst of load does not cost latency for the rest of the show. Each session works the
+  frame off by skipping one input frame (counted, as for any lag; see daemon.session).
 
-The delay only ever grows while running (shrinking it would skip output frames); words
-that were late before a raise stay counted.
+Words that were late before a raise stay counted.
 """
 
 from __future__ import annotations
@@ -32,6 +36,11 @@ MIN_SAMPLES = 30  # jobs measured before the live estimate is trusted (a one-off
 WINDOW = 600  # jobs the live estimate looks back over (10 s at one job per tick)
 QUANTILE = 95
 MAX_SLACK = 60  # ticks (1 s): past this the model is hopeless for live use; said so, not chased
+# Lowering is slow and asks for room to spare: a delay that goes down on a lull and up on
+# the next burst would cost a late word every time. Two frames spare means the lowered
+# delay still has one frame beyond what the recent p95 (with its margin) needs.
+LOWER_SPARE = 2
+LOWER_AFTER_CHECKS = 30  # consecutive planner checks (one a second: 30 s) with that much to spare
 
 
 @dataclass(frozen=True)
@@ -79,6 +88,7 @@ class SlackPlanner:
 
     def __init__(self):
         self.ready_after: deque = deque(maxlen=WINDOW)  # seconds after the submitting tick
+        self.calm_checks = 0  # consecutive checks that found LOWER_SPARE frames unused
 
     def add(self, seconds: float) -> None:
         self.ready_after.append(seconds)
@@ -90,6 +100,20 @@ class SlackPlanner:
         import numpy as np
 
         return slack_for(float(np.percentile(self.ready_after, QUANTILE)))
+
+    def can_lower(self, slack: int, floor: int) -> bool:
+        """Called once per check: may the slack come down one frame (not below ``floor``)?
+        Only after ``LOWER_AFTER_CHECKS`` checks in a row found ``LOWER_SPARE`` frames
+        unused; the count starts again after every change and every busier check."""
+        needed = self.needed_slack()
+        if needed is None or slack <= floor or needed > slack - LOWER_SPARE:
+            self.calm_checks = 0
+            return False
+        self.calm_checks += 1
+        if self.calm_checks < LOWER_AFTER_CHECKS:
+            return False
+        self.calm_checks = 0
+        return True
 
     def estimate_ms(self) -> float:
         import numpy as np
@@ -103,3 +127,9 @@ def delay_line(reason: str, hop: int, old: int, new: int, capped: bool) -> str:
            f"--hop or fewer performers" if capped else "")
     return (f"model too slow for hop {hop} with delay {old} ({reason}); delay raised to {new} frames "
             f"({new * 1000 / FPS:.0f} ms added latency) so every word is on time{cap}")
+
+
+def lowered_line(reason: str, old: int, new: int) -> str:
+    """The one status line for a delay lowered again after the load has passed."""
+    return (f"model has time to spare ({reason}); delay lowered from {old} to {new} frames "
+            f"({new * 1000 / FPS:.0f} ms added latency), one input frame skipped to catch up")

@@ -214,9 +214,14 @@ class Session:
         return self._style_to if p >= 1.0 else (1.0 - p) * self._style_from + p * self._style_to
 
     def set_delay(self, delay: int) -> None:
-        """A longer delay (the engine's slack planner): output holds until it is reached."""
+        """A new delay (the engine's slack planner). Longer: the output holds until it is
+        reached. Shorter: the session is behind by the difference and works it off by
+        skipping input frames, one per ``LAG_PATIENCE`` ticks as for any lag that lasts.
+        The input ring never shrinks: the frames it must still show lag the newest by the
+        old delay."""
         self.settings.delay = delay
-        self._inputs = deque(self._inputs, maxlen=delay + MAX_LAG + 2)
+        if delay + MAX_LAG + 2 > self._inputs.maxlen:
+            self._inputs = deque(self._inputs, maxlen=delay + MAX_LAG + 2)
 
     def set_bypass(self, bypass: bool) -> None:
         if self.bypass and not bypass:

@@ -14,7 +14,8 @@ import pytest
 from stylecast.motion.clock import RealClock
 from stylecast.daemon.config import DaemonConfig, build_config
 from stylecast.daemon.engine import Daemon
-from stylecast.daemon.latency import LATENCY_PRESETS, SlackPlanner, slack_for
+from stylecast.daemon import latency
+from stylecast.daemon.latency import LATENCY_PRESETS, LOWER_AFTER_CHECKS, SlackPlanner, slack_for
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion.errors import UserError
@@ -23,15 +24,16 @@ from .test_daemon import walk_clip
 
 
 class SleepyRestyler:
-    """The stand-in restyler, ``seconds`` slower per call from call ``slow_from`` on."""
+    """The stand-in restyler, ``seconds`` slower per call from call ``slow_from`` on (and
+    before call ``slow_until``, if given)."""
 
-    def __init__(self, seconds: float, slow_from: int = 1):
-        self.seconds, self.slow_from, self.calls = seconds, slow_from, 0
+    def __init__(self, seconds: float, slow_from: int = 1, slow_until: int | None = None):
+        self.seconds, self.slow_from, self.slow_until, self.calls = seconds, slow_from, slow_until, 0
         self.inner = StandInRestyler()
 
     def restyle_words(self, words):
         self.calls += 1
-        if self.calls >= self.slow_from:
+        if self.calls >= self.slow_from and (self.slow_until is None or self.calls < self.slow_until):
             time.sleep(self.seconds)
         return self.inner.restyle_words(words)
 
@@ -119,3 +121,58 @@ def test_a_model_that_slows_down_live_is_caught_by_the_planner_and_late_words_st
     assert daemon.delay_notes and "results ready" in daemon.delay_notes[0]
     assert late_at_raise[0] > 0  # late before the planner knew: counted, not hidden
     assert s.blender.late_frames <= late_at_raise[-1] + 2 * s.settings.hop  # on time after the last raise
+
+
+def test_the_planner_lowers_only_after_a_run_of_checks_with_two_frames_to_spare():
+    planner = SlackPlanner()
+    for _ in range(40):
+        planner.add(0.005)  # needs a slack of 1
+    assert not planner.can_lower(slack=2, floor=1)  # 1 frame spare is not enough
+    assert all(not planner.can_lower(slack=3, floor=1) for _ in range(LOWER_AFTER_CHECKS - 1))
+    assert planner.can_lower(slack=3, floor=1)  # the 30th calm check in a row
+    assert not planner.can_lower(slack=3, floor=1)  # and the count starts again
+    for _ in range(LOWER_AFTER_CHECKS + 1):
+        assert not planner.can_lower(slack=3, floor=3)  # never below the configured slack
+    for _ in range(LOWER_AFTER_CHECKS - 1):
+        planner.can_lower(slack=3, floor=1)
+    for _ in range(600):
+        planner.add(0.030)  # a busier stretch: needs 3
+    assert not planner.can_lower(slack=3, floor=1)  # resets the run
+    for _ in range(600):
+        planner.add(0.005)
+    assert not any(planner.can_lower(slack=3, floor=1) for _ in range(LOWER_AFTER_CHECKS - 1))
+
+
+def test_after_a_slow_spell_the_delay_comes_back_down_to_the_presets_without_late_words(monkeypatch):
+    # 45 ms a call for calls 4..59 (about 4 s at hop 4), fast after: the planner raises
+    # the delay during the spell and lowers it one frame at a time after it, back to the
+    # preset's 5 frames; each lowering costs one skipped input frame and no late word.
+    monkeypatch.setattr(latency, "WINDOW", 30)  # the estimate forgets the spell in 2 s ...
+    monkeypatch.setattr(latency, "LOWER_AFTER_CHECKS", 2)  # ... and lowers after 2 calm checks
+    daemon = Daemon(DaemonConfig(control="off", status_interval=3600.0),
+                    [ReplaySource(walk_clip(600), "p0", loop=True)], SleepyRestyler(0.045, slow_from=4, slow_until=60),
+                    RealClock(), log_status=False)
+    delays, late = [], []
+    plan = daemon._plan_slack
+
+    def spy():
+        plan()
+        if not delays or delays[-1] != daemon.settings.delay:
+            delays.append(daemon.settings.delay)
+            late.append(daemon.sessions[0].blender.late_frames)
+
+    daemon._plan_slack = spy
+    try:
+        daemon.run(duration=16.0)
+    finally:
+        daemon.close()
+    s = daemon.sessions[0]
+    raised = [line for line in daemon.delay_notes if "raised" in line]
+    lowered = [line for line in daemon.delay_notes if "lowered" in line]
+    top = max(delays)
+    assert raised and top > 5, daemon.delay_notes
+    assert daemon.settings.delay == 5 == s.settings.delay, daemon.delay_notes  # back to the preset's
+    assert delays[delays.index(top):] == list(range(top, 4, -1))  # down one frame at a time
+    assert len(lowered) == top - 5 and "delay lowered from" in lowered[0] and "frame skipped" in lowered[0]
+    assert s.skipped >= len(lowered)
+    assert s.blender.late_frames == late[delays.index(top)], (late, delays)  # lowering made none late
