@@ -259,8 +259,22 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
     return out
 
 
+def _exit_with_parent() -> None:
+    """A worker cannot be a daemonic process (it starts its own receiver), so it watches
+    its parent instead: a soak stopped with Ctrl-C or kill takes its workers with it."""
+    parent = os.getppid()
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
 def _soak_in_process(kwargs, start, conn) -> None:
     """One worker of a ``--workers`` soak: its lines prefixed, its figures sent back."""
+    _exit_with_parent()
     tag = f"[p{kwargs['first']}..p{kwargs['first'] + kwargs['performers'] - 1}]"
     conn.send(soak(**kwargs, start=start, log=lambda line: print(f"{tag} {line}", flush=True)))
     conn.close()
