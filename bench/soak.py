@@ -101,8 +101,9 @@ def soak_receiver(socks, duration, ready, results) -> None:
     for s in socks:
         s.setblocking(False)
     ready.set()
+    parent = os.getppid()
     end = time.monotonic() + duration
-    while time.monotonic() < end:
+    while time.monotonic() < end and os.getppid() == parent:  # a killed soak takes its receiver along
         readable, _, _ = select.select(socks, [], [], 0.1)
         for s in readable:
             i = socks.index(s)

@@ -212,7 +212,7 @@ class Daemon:
         needed = planner.needed_slack()
         if needed is None:
             return
-        reason = f"results ready {planner.estimate_ms():.1f} ms after their tick (p95)"
+        reason = f"results ready up to {planner.estimate_ms():.1f} ms after their tick"
         if needed > self.slack:
             self._raise_slack(needed, reason)
         elif planner.can_lower(self.slack, self._configured_delay - self.settings.hop + 1):
@@ -427,7 +427,7 @@ class Daemon:
         return {"daemon": {"style": self.style, "model": model_name(self.worker.restyler),
                            "performers": len(self.sessions), "ticks": self.ticks,
                            "hop": self.settings.hop, "delay": self.settings.delay,
-                           "model_ready_p95_ms": round(self.worker.planner.estimate_ms(), 2),
+                           "model_ready_max_ms": round(self.worker.planner.estimate_ms(), 2),
                            "dropped_ticks": self.dropped_ticks, "faults": self.worker.faults,
                            "control_refused": self.control.refused if self.control else 0},
                 "performers": performers}
