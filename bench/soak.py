@@ -33,6 +33,7 @@ daemon's own bookkeeping).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import multiprocessing as mp
 import os
@@ -178,6 +179,16 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
     daemon = Daemon(cfg, sources, model, RealClock(stop), log_status=False)
     samples = []
     state = {"next": 0.0, "t0": 0.0}
+    full_collections = []  # seconds each full (generation 2) garbage collection took
+
+    def time_full_collections(phase, info):
+        if info["generation"] == 2:
+            if phase == "start":
+                state["gc_start"] = time.perf_counter()
+            else:
+                full_collections.append(time.perf_counter() - state["gc_start"])
+
+    gc.callbacks.append(time_full_collections)
 
     def sample(now: float) -> None:
         st = proc_status()
@@ -194,13 +205,19 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
             "late_frames": sum(p[2] for p in per), "delay": daemon.settings.delay,
             "frames_out": sum(s.frames_out for s in daemon.sessions),
             "faults": daemon.worker.faults, "stale_words": getattr(daemon.worker, "stale_words", 0),
+            "full_gc": len(full_collections), "full_gc_max_ms": max(full_collections, default=0.0) * 1e3,
+            # the model call itself against when its results were ready (queueing and the CPU)
+            "model_call_max_ms": max(daemon.worker.call_ms, default=0.0),
+            "ready_after_max_ms": daemon.worker.planner.estimate_ms(),
         }
         samples.append(row)
         log(f"[{row['t_s']:7.1f} s] RSS {row['rss_mb']:6.1f} MB (peak {row['peak_mb']:6.1f}) threads "
             f"{row['threads']} fds {row['fds']} | latency p50 {row['latency_p50_ms']:6.1f} p99 "
             f"{row['latency_p99_ms']:6.1f} ms | tick late p99 {row['tick_late_p99_ms']:6.1f} ms | ticks "
             f"{row['ticks']} dropped {row['dropped_ticks']} clock offset {row['clock_offset_ticks']:+.2f} | "
-            f"late frames {row['late_frames']} delay {row['delay']} faults {row['faults']}")
+            f"late frames {row['late_frames']} delay {row['delay']} faults {row['faults']} | full GCs "
+            f"{row['full_gc']} (max {row['full_gc_max_ms']:.0f} ms) | last 600 jobs: model call max "
+            f"{row['model_call_max_ms']:.0f} ms, ready after max {row['ready_after_max_ms']:.0f} ms")
 
     sampled = daemon.sessions[0].performer
 
@@ -226,6 +243,7 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
         wall = time.monotonic() - t0
     finally:
         daemon.close()
+        gc.callbacks.remove(time_full_collections)
     received = results.get(timeout=seconds + 60)
     receiver.join(timeout=10)
     sent = [sinks.vmc.sender.frames_sent for sinks in daemon.sinks]
@@ -246,6 +264,7 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
         "frames_sent": sum(sent), "frames_received": sum(v.get("frames", 0) for v in received.values()),
         "drift_ppm": [round(v.get("drift_ppm", float("nan")), 2) for v in received.values()],
         "threads_start_end": (warm["threads"], end["threads"]), "fds_start_end": (warm["fds"], end["fds"]),
+        "full_gc": end["full_gc"], "full_gc_max_ms": end["full_gc_max_ms"],
     }
     s = out["summary"]
     log(f"summary: RSS {s['rss_after_warmup_mb']:.1f} MB after warm-up -> {s['rss_end_mb']:.1f} MB at the end "
