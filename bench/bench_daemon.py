@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from machine import describe  # bench/machine.py (scripts run from bench/)
+from processes import run_together  # bench/processes.py
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "bandai"
@@ -273,21 +274,9 @@ def run_capacity_workers(n, workers, seconds, hop=0, latency="default"):
     contiguous slice of the performers (daemon/workers.py), all at once; figures combined."""
     from stylecast.daemon.workers import split
 
-    ctx = mp.get_context("spawn")
     slices = split(n, workers)
     port = free_ports(n)  # performer k to port + k, whichever worker serves it
-    start = ctx.Barrier(len(slices))
-    procs, pipes = [], []
-    for r in slices:
-        parent, child = ctx.Pipe(duplex=False)
-        proc = ctx.Process(target=_capacity_in_process, args=(len(r), port + r.start, seconds, hop, latency, start,
-                                                              child))
-        proc.start()
-        procs.append(proc)
-        pipes.append(parent)
-    parts = [pipe.recv() for pipe in pipes]
-    for proc in procs:
-        proc.join()
+    parts = run_together(_capacity_in_process, [(len(r), port + r.start, seconds, hop, latency) for r in slices])
     total = {key: sum(p[key] for p in parts) for key in ("dropped", "late", "cpu", "received", "sent")}
     worst = {key: max(p[key] for p in parts) for key in ("delay", "p99", "tick99", "wall", "calls")}
     return dict(n=n, **total, **worst)

@@ -48,6 +48,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "bench"))  # also when loaded by path (tests/test_hardening_soak.py)
 from machine import describe  # noqa: E402 (bench/machine.py)
+from processes import run_together  # noqa: E402 (bench/processes.py)
 DATA = REPO.parent / "shared" / "data" / "bandai"
 CHECKPOINT = REPO / "models" / "checkpoints" / "normal2exhausted.safetensors"
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # noqa: E402 (the one definition)
@@ -306,21 +307,9 @@ def soak_workers(minutes: float, performers: int, workers: int, sample_every: fl
     daemon per contiguous slice, all started at once; the summary combined."""
     from stylecast.daemon.workers import split
 
-    ctx = mp.get_context("spawn")
     slices = split(performers, workers)
-    start = ctx.Barrier(len(slices))
-    procs, pipes = [], []
-    for r in slices:
-        parent, child = ctx.Pipe(duplex=False)
-        kwargs = dict(minutes=minutes, performers=len(r), sample_every=sample_every, restyler=restyler,
-                      first=r.start)
-        proc = ctx.Process(target=_soak_in_process, args=(kwargs, start, child))
-        proc.start()
-        procs.append(proc)
-        pipes.append(parent)
-    parts = [pipe.recv() for pipe in pipes]
-    for proc in procs:
-        proc.join()
+    parts = run_together(_soak_in_process, [(dict(minutes=minutes, performers=len(r), sample_every=sample_every,
+                                                  restyler=restyler, first=r.start),) for r in slices])
     summaries = [part["summary"] for part in parts]
     added = ("late_frames", "late_frames_after_warmup", "dropped_ticks", "frames_sent", "frames_received")
     combined = {key: sum(s[key] for s in summaries) for key in added}

@@ -12,8 +12,9 @@ model, the device, the batch and the machine's load, so the daemon does not gues
   slowest of the recent jobs no longer fits, with ONE status line saying why;
 * and once the load that forced a raise has passed (the slowest recent job would
   leave ``LOWER_SPARE`` frames unused, for ``LOWER_AFTER_CHECKS`` checks in a row) it
-  lowers the delay again, one frame at a time and never below the configured one, so a
-  burst of load does not cost latency for the rest of the show. Each session works the
+  lowers the delay again, one frame every ``LOWER_EVERY_CHECKS`` checks while that
+  lasts and never below the configured one, so a burst of load does not cost latency
+  for the rest of the show. Each session works the
   frame off by skipping one input frame (counted, as for any lag; see daemon.session).
 
 Words that were late before a raise stay counted.
@@ -44,6 +45,11 @@ MAX_SLACK = 60  # ticks (1 s): past this the model is hopeless for live use; sai
 # delay still has one frame beyond what the slowest recent job (with its margin) needs.
 LOWER_SPARE = 2
 LOWER_AFTER_CHECKS = 30  # consecutive planner checks (one a second: 30 s) with that much to spare
+# Once calm is established, each further frame comes off after this many more calm checks:
+# at one frame per 30 s, a delay raised to 34 frames by a 400 ms stall in the soak would
+# take 13 minutes to come back. Each lowering costs one skipped input frame (the session's
+# own lag rule), so they are kept a few seconds apart.
+LOWER_EVERY_CHECKS = 3
 
 
 @dataclass(frozen=True)
@@ -107,7 +113,8 @@ class SlackPlanner:
     def can_lower(self, slack: int, floor: int) -> bool:
         """Called once per check: may the slack come down one frame (not below ``floor``)?
         Only after ``LOWER_AFTER_CHECKS`` checks in a row found ``LOWER_SPARE`` frames
-        unused; the count starts again after every change and every busier check."""
+        unused, then every ``LOWER_EVERY_CHECKS`` while that lasts; a busier check (or a
+        raise) starts the count again from zero."""
         needed = self.needed_slack()
         if needed is None or slack <= floor or needed > slack - LOWER_SPARE:
             self.calm_checks = 0
@@ -115,7 +122,7 @@ class SlackPlanner:
         self.calm_checks += 1
         if self.calm_checks < LOWER_AFTER_CHECKS:
             return False
-        self.calm_checks = 0
+        self.calm_checks = LOWER_AFTER_CHECKS - LOWER_EVERY_CHECKS
         return True
 
     def estimate_ms(self) -> float:

@@ -15,7 +15,8 @@ from stylecast.motion.clock import RealClock
 from stylecast.daemon.config import DaemonConfig, build_config
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon import latency
-from stylecast.daemon.latency import LATENCY_PRESETS, LOWER_AFTER_CHECKS, SlackPlanner, slack_for
+from stylecast.daemon.latency import (LATENCY_PRESETS, LOWER_AFTER_CHECKS, LOWER_EVERY_CHECKS, SlackPlanner,
+                                       slack_for)
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion.errors import UserError
@@ -38,14 +39,26 @@ class SleepyRestyler:
         return self.inner.restyle_words(words)
 
 
-def run_real(restyler, seconds: float, **config) -> Daemon:
+def run_real(restyler, seconds: float, **config) -> tuple[Daemon, list[tuple[int, int]]]:
+    """One looping performer on the real clock for ``seconds``. Also returns the delay's
+    history: (delay, late frames so far) at the start and after each planner check that
+    changed it."""
     cfg = DaemonConfig(control="off", status_interval=3600.0, **config)
     daemon = Daemon(cfg, [ReplaySource(walk_clip(600), "p0", loop=True)], restyler, RealClock(), log_status=False)
+    changes = [(daemon.settings.delay, 0)]
+    plan = daemon._plan_slack
+
+    def watched():
+        plan()
+        if daemon.settings.delay != changes[-1][0]:
+            changes.append((daemon.settings.delay, daemon.sessions[0].blender.late_frames))
+
+    daemon._plan_slack = watched
     try:
         daemon.run(duration=seconds)
     finally:
         daemon.close()
-    return daemon
+    return daemon, changes
 
 
 def test_presets_set_hop_and_delay_and_flags_override_them():
@@ -76,7 +89,7 @@ def test_slack_covers_the_measured_time_with_margin():
 
 def test_a_fast_model_keeps_the_presets_delay_and_no_word_is_late(caplog):
     with caplog.at_level(logging.WARNING, logger="stylecast.daemon"):
-        daemon = run_real(IdentityRestyler(), 2.0)
+        daemon, _ = run_real(IdentityRestyler(), 2.0)
     s = daemon.sessions[0]
     assert daemon.settings.delay == 5 and s.settings.delay == 5
     assert daemon.delay_notes == [] and "too slow" not in caplog.text
@@ -86,7 +99,7 @@ def test_a_fast_model_keeps_the_presets_delay_and_no_word_is_late(caplog):
 def test_a_model_too_slow_for_the_hop_gets_a_larger_delay_one_line_and_no_late_words(caplog):
     # 45 ms per call against the default preset's 33 ms of slack (hop 4, delay 5).
     with caplog.at_level(logging.WARNING, logger="stylecast.daemon"):
-        daemon = run_real(SleepyRestyler(0.045), 3.0)
+        daemon, _ = run_real(SleepyRestyler(0.045), 3.0)
     s = daemon.sessions[0]
     assert daemon.settings.delay > 5 and s.settings.delay == daemon.settings.delay
     assert len(daemon.delay_notes) == 1, daemon.delay_notes
@@ -100,23 +113,8 @@ def test_a_model_too_slow_for_the_hop_gets_a_larger_delay_one_line_and_no_late_w
 def test_a_model_that_slows_down_live_is_caught_by_the_planner_and_late_words_stay_counted():
     # Fast when timed at start (3 calls), then 45 ms per call: words are late until the
     # planner has seen enough jobs, then the delay grows and no further word is late.
-    restyler = SleepyRestyler(0.045, slow_from=4)
-    late_at_raise = []
-    cfg = DaemonConfig(control="off", status_interval=3600.0, latency="low")
-    daemon = Daemon(cfg, [ReplaySource(walk_clip(600), "p0", loop=True)], restyler, RealClock(), log_status=False)
-    raise_slack = daemon._raise_slack
-
-    def spy(needed, reason):
-        before = len(daemon.delay_notes)
-        raise_slack(needed, reason)
-        if len(daemon.delay_notes) > before:
-            late_at_raise.append(daemon.sessions[0].blender.late_frames)
-
-    daemon._raise_slack = spy
-    try:
-        daemon.run(duration=5.0)
-    finally:
-        daemon.close()
+    daemon, changes = run_real(SleepyRestyler(0.045, slow_from=4), 5.0, latency="low")
+    late_at_raise = [late for _, late in changes[1:]]
     s = daemon.sessions[0]
     assert daemon.delay_notes and "results ready" in daemon.delay_notes[0]
     assert late_at_raise[0] > 0  # late before the planner knew: counted, not hidden
@@ -130,14 +128,13 @@ def test_the_planner_lowers_only_after_a_run_of_checks_with_two_frames_to_spare(
     assert not planner.can_lower(slack=2, floor=1)  # 1 frame spare is not enough
     assert all(not planner.can_lower(slack=3, floor=1) for _ in range(LOWER_AFTER_CHECKS - 1))
     assert planner.can_lower(slack=3, floor=1)  # the 30th calm check in a row
-    assert not planner.can_lower(slack=3, floor=1)  # and the count starts again
+    then = [planner.can_lower(slack=3, floor=1) for _ in range(LOWER_EVERY_CHECKS)]
+    assert then == [False] * (LOWER_EVERY_CHECKS - 1) + [True]  # and then every few checks while calm
     for _ in range(LOWER_AFTER_CHECKS + 1):
         assert not planner.can_lower(slack=3, floor=3)  # never below the configured slack
-    for _ in range(LOWER_AFTER_CHECKS - 1):
-        planner.can_lower(slack=3, floor=1)
     for _ in range(600):
         planner.add(0.030)  # a busier stretch: needs 3
-    assert not planner.can_lower(slack=3, floor=1)  # resets the run
+    assert not planner.can_lower(slack=3, floor=1)  # resets the run, from the start
     for _ in range(600):
         planner.add(0.005)
     assert not any(planner.can_lower(slack=3, floor=1) for _ in range(LOWER_AFTER_CHECKS - 1))
@@ -148,24 +145,10 @@ def test_after_a_slow_spell_the_delay_comes_back_down_to_the_presets_without_lat
     # the delay during the spell and lowers it one frame at a time after it, back to the
     # preset's 5 frames; each lowering costs one skipped input frame and no late word.
     monkeypatch.setattr(latency, "WINDOW", 30)  # the estimate forgets the spell in 2 s ...
-    monkeypatch.setattr(latency, "LOWER_AFTER_CHECKS", 2)  # ... and lowers after 2 calm checks
-    daemon = Daemon(DaemonConfig(control="off", status_interval=3600.0),
-                    [ReplaySource(walk_clip(600), "p0", loop=True)], SleepyRestyler(0.045, slow_from=4, slow_until=60),
-                    RealClock(), log_status=False)
-    delays, late = [], []
-    plan = daemon._plan_slack
-
-    def spy():
-        plan()
-        if not delays or delays[-1] != daemon.settings.delay:
-            delays.append(daemon.settings.delay)
-            late.append(daemon.sessions[0].blender.late_frames)
-
-    daemon._plan_slack = spy
-    try:
-        daemon.run(duration=16.0)
-    finally:
-        daemon.close()
+    monkeypatch.setattr(latency, "LOWER_AFTER_CHECKS", 2)  # ... lowers after 2 calm checks ...
+    monkeypatch.setattr(latency, "LOWER_EVERY_CHECKS", 2)  # ... then every 2
+    daemon, changes = run_real(SleepyRestyler(0.045, slow_from=4, slow_until=60), 16.0)
+    delays, late = [d for d, _ in changes], [n for _, n in changes]
     s = daemon.sessions[0]
     raised = [line for line in daemon.delay_notes if "raised" in line]
     lowered = [line for line in daemon.delay_notes if "lowered" in line]
