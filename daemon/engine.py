@@ -220,12 +220,7 @@ class Daemon:
 
     def _lower_delay(self, reason: str) -> None:
         old = self.settings.delay
-        self.settings.delay = old - 1
-        for s in self.sessions:
-            s.set_delay(old - 1)
-        line = lowered_line(reason, old, old - 1)
-        self.delay_notes.append(line)
-        log.info(line)
+        self._set_delay(old - 1, lowered_line(reason, old, old - 1), logging.INFO)
 
     def _raise_slack(self, needed: int, reason: str) -> None:
         if needed <= self.slack:
@@ -235,12 +230,15 @@ class Daemon:
         new = hop - 1 + min(needed, MAX_SLACK)
         if new <= old:
             return
-        self.settings.delay = new
+        self._set_delay(new, delay_line(reason, hop, old, new, capped), logging.WARNING)
+
+    def _set_delay(self, delay: int, line: str, level: int) -> None:
+        """Every session to ``delay``, with its one status line (kept and logged)."""
+        self.settings.delay = delay
         for s in self.sessions:
-            s.set_delay(new)
-        line = delay_line(reason, hop, old, new, capped)
+            s.set_delay(delay)
         self.delay_notes.append(line)
-        log.warning(line)
+        log.log(level, line)
 
     def tick_time(self, k: int) -> float:
         return self._t0 + k / FPS

@@ -14,8 +14,8 @@ model, the device, the batch and the machine's load, so the daemon does not gues
   leave ``LOWER_SPARE`` frames unused, for ``LOWER_AFTER_CHECKS`` checks in a row) it
   lowers the delay again, one frame every ``LOWER_EVERY_CHECKS`` checks while that
   lasts and never below the configured one, so a burst of load does not cost latency
-  for the rest of the show. Each session works the
-  frame off by skipping one input frame (counted, as for any lag; see daemon.session).
+  for the rest of the show. Each session works the frame off by skipping one input
+  frame (counted, as for any lag; see daemon.session).
 
 Words that were late before a raise stay counted.
 """
@@ -35,10 +35,6 @@ MARGIN_S = 0.002  # and a fixed 2 ms for the tick's own work before the collect
 CALIBRATION_FACTOR = 2.0  # startup timing runs alone; live, the output loop competes for the CPU
 MIN_SAMPLES = 30  # jobs measured before the live estimate is trusted (a one-off stall is not a trend)
 WINDOW = 600  # jobs the live estimate looks back over (10 s at one job per tick)
-# The slowest recent job, not a percentile: every word on time means the tail too. A 95th
-# percentile (the first choice) let 0.2 % of frames come late in a 16-performer soak
-# while the delay never moved; the lowering below undoes what a one-off stall costs.
-QUANTILE = 100
 MAX_SLACK = 60  # ticks (1 s): past this the model is hopeless for live use; said so, not chased
 # Lowering is slow and asks for room to spare: a delay that goes down on a lull and up on
 # the next burst would cost a late word every time. Two frames spare means the lowered
@@ -103,12 +99,14 @@ class SlackPlanner:
         self.ready_after.append(seconds)
 
     def needed_slack(self) -> int | None:
-        """The smallest safe slack by the recent jobs, or None while too few are known."""
+        """The smallest safe slack by the slowest recent job, or None while too few are
+        known. The slowest, not a percentile: every word on time means the tail too (a
+        95th percentile, the first choice, let 0.2 % of frames come late in a
+        16-performer soak while the delay never moved; the lowering undoes what a one-off
+        stall costs)."""
         if len(self.ready_after) < MIN_SAMPLES:
             return None
-        import numpy as np
-
-        return slack_for(float(np.percentile(self.ready_after, QUANTILE)))
+        return slack_for(max(self.ready_after))
 
     def can_lower(self, slack: int, floor: int) -> bool:
         """Called once per check: may the slack come down one frame (not below ``floor``)?
@@ -126,9 +124,8 @@ class SlackPlanner:
         return True
 
     def estimate_ms(self) -> float:
-        import numpy as np
-
-        return float(np.percentile(self.ready_after, QUANTILE)) * 1e3 if self.ready_after else 0.0
+        """The slowest recent job, ms after its tick (0 before any)."""
+        return max(self.ready_after, default=0.0) * 1e3
 
 
 def delay_line(reason: str, hop: int, old: int, new: int, capped: bool) -> str:
