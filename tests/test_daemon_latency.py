@@ -121,6 +121,18 @@ def test_a_model_that_slows_down_live_is_caught_by_the_planner_and_late_words_st
     assert s.blender.late_frames <= late_at_raise[-1] + 2 * s.settings.hop  # on time after the last raise
 
 
+def test_one_slow_job_in_the_window_sets_the_slack():
+    # The tail a 95th percentile would let through (a word late at an unmoved delay): one
+    # 50 ms job among 599 fast ones needs the slack the 50 ms job needs.
+    planner = SlackPlanner()
+    for _ in range(599):
+        planner.add(0.005)
+    assert planner.needed_slack() == 1
+    planner.add(0.050)
+    assert planner.needed_slack() == slack_for(0.050) == 4
+    assert planner.estimate_ms() == 50.0
+
+
 def test_the_planner_lowers_only_after_a_run_of_checks_with_two_frames_to_spare():
     planner = SlackPlanner()
     for _ in range(40):
