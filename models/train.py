@@ -39,6 +39,7 @@ from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
 from .averaging import WeightAverage
+from .content import ActionContent, ActionLabels
 from .device import Determinism, pick_device
 from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
 from . import representation as R
@@ -47,7 +48,7 @@ from .representation import euler_features, get_representation
 GENERATOR_PREFIXES = ("G_a2b.", "G_b2a.")
 AVERAGE_PREFIX = "average."  # the weight average's tensors in train_state.safetensors
 CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
-              "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
+              "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "action_a2b", "action_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
               "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
 
 
@@ -73,6 +74,7 @@ class TrainConfig:
     lambda_coherence: float = L.LAMBDA_COHERENCE
     lambda_gram: float = L.LAMBDA_GRAM
     lambda_overlap: float = 0.0  # overlapping words agree (losses.overlap_loss); 0 = off
+    lambda_action: float = 0.0  # the restyle keeps the input's action (content.py); 0 = off
     # The model written is the generators' weight average (averaging.py) with this decay; 0 =
     # the last weights. Measured over four seeds of the pair recipe (MODEL_CARD.md), the
     # average against each run's own last weights: jerk 1.08-1.14 -> 1.01-1.02, planted-foot
@@ -128,7 +130,7 @@ def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
         **shared_metadata(cfg, rep, f"styles {cfg.style_a} and {cfg.style_b}"),
         "loss": cfg.loss,
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence,
-                    "gram": cfg.lambda_gram},
+                    "gram": cfg.lambda_gram, "action": cfg.lambda_action},
     }
     meta.update(extra or {})
     return meta
@@ -153,9 +155,10 @@ class Trainer:
     def __init__(self, cfg: TrainConfig, words_a: np.ndarray, words_b: np.ndarray,
                  val_a: np.ndarray | None = None, val_b: np.ndarray | None = None, device: str = "auto",
                  reference: np.ndarray | None = None, next_a: np.ndarray | None = None,
-                 next_b: np.ndarray | None = None):
+                 next_b: np.ndarray | None = None, actions: ActionLabels | None = None):
         """``next_a``/``next_b``: for each training word, the index of the next word of the
-        same take (overlapping it by 60 - hop frames), or -1 (``data.next_words``)."""
+        same take (overlapping it by 60 - hop frames), or -1 (``data.next_words``).
+        ``actions``: every word's action, needed when ``cfg.lambda_action`` > 0."""
         import torch
 
         if cfg.loss not in L.LOSS_KINDS:
@@ -180,11 +183,31 @@ class Trainer:
         self.val_b = None if val_b is None or len(val_b) == 0 else self._encode(val_b[: cfg.val_words])
         self.epoch = 0  # epochs completed
         self.average = WeightAverage(self.model, GENERATOR_PREFIXES, cfg.ema) if cfg.ema > 0 else None
+        self.content = self.actions = None
+        if cfg.lambda_action > 0:
+            self._fit_content(actions, val_a, val_b)
+
+    def _fit_content(self, actions: ActionLabels | None, val_a, val_b) -> None:
+        """Train the frozen action classifier of the content loss on both styles' training
+        words, and score it on their held-out words."""
+        import torch
+
+        if actions is None:
+            raise UserError("--lambda-action needs the action of every training word; train from the dataset folder")
+        channels = lambda words: to_channels(words if torch.is_tensor(words) else torch.from_numpy(self._encode(words)))
+        x = torch.cat([channels(self.words_a), channels(self.words_b)])
+        self.content = ActionContent(actions.classes, x.shape[1], self.cfg.seed).fit(
+            x, np.concatenate([actions.train_a, actions.train_b]), self.device)
+        if val_a is not None and val_b is not None and len(val_a) and len(val_b):
+            self.content.score("val", torch.cat([channels(val_a), channels(val_b)]),
+                               np.concatenate([actions.val_a, actions.val_b]), self.device)
+        self.actions = (torch.from_numpy(actions.train_a), torch.from_numpy(actions.train_b))
 
     # -- one step ---------------------------------------------------------------------
-    def step(self, a, b, a_next=None, b_next=None) -> dict[str, float]:
+    def step(self, a, b, a_next=None, b_next=None, a_actions=None, b_actions=None) -> dict[str, float]:
         """One update. ``a_next``/``b_next``: (rows, next words) pairs, the word after each
-        of those rows of ``a``/``b`` in the same take (for the overlap loss), or None."""
+        of those rows of ``a``/``b`` in the same take (for the overlap loss), or None.
+        ``a_actions``/``b_actions``: the words' actions (for the content loss), or None."""
         m, cfg = self.model, self.cfg
         for p in m.discriminators():
             p.requires_grad_(False)
@@ -195,15 +218,22 @@ class Trainer:
         g = L.generator_objective(cfg.loss, a, b, fake_b, fake_a, rec_a, rec_b, m.D_b(fake_b), m.D_a(fake_a),
                                   cfg.lambda_cycle, cfg.lambda_diff, cfg.lambda_coherence, cfg.lambda_gram)
         total = g.total
-        overlaps = {}
+        extras = {}  # the optional terms' values, 0 when off
         for name, fake, nxt, gen in (("overlap_a", fake_b, a_next, m.G_a2b), ("overlap_b", fake_a, b_next, m.G_b2a)):
             if cfg.lambda_overlap > 0 and nxt is not None and len(nxt[0]):
                 rows, words = nxt
                 loss = L.overlap_loss(fake[rows], gen(words), cfg.hop, self.rep.channels)
                 total = total + cfg.lambda_overlap * loss
-                overlaps[name] = loss.item()
+                extras[name] = loss.item()
             else:
-                overlaps[name] = 0.0
+                extras[name] = 0.0
+        for name, fake, actions in (("action_a2b", fake_b, a_actions), ("action_b2a", fake_a, b_actions)):
+            if self.content is not None and actions is not None:
+                loss = self.content.loss(fake, actions)
+                total = total + cfg.lambda_action * loss
+                extras[name] = loss.item()
+            else:
+                extras[name] = 0.0
         self.opt_g.zero_grad(set_to_none=True)
         total.backward()
         self.opt_g.step()
@@ -219,7 +249,7 @@ class Trainer:
         return {"G_a2b": g.adv_a2b.item(), "G_b2a": g.adv_b2a.item(), "D_a": d_a.item(), "D_b": d_b.item(),
                 "cycle_a": g.cycle_a.item(), "cycle_b": g.cycle_b.item(), "temporal_a": g.temporal_a.item(),
                 "temporal_b": g.temporal_b.item(), "gram_a2b": g.gram_a2b.item(), "gram_b2a": g.gram_b2a.item(),
-                **overlaps, "G_total": total.item()}
+                **extras, "G_total": total.item()}
 
     def _to(self, words):
         return to_channels(words).to(self.device)
@@ -234,6 +264,12 @@ class Trainer:
         keep = np.flatnonzero(following >= 0)
         return torch.from_numpy(keep).to(self.device), self._to(words[following[keep]])
 
+    def _actions(self, ia, ib):
+        """The batch's actions for the content loss, or (None, None) when it is off."""
+        if self.actions is None:
+            return None, None
+        return self.actions[0][ia].to(self.device), self.actions[1][ib].to(self.device)
+
     def run_epoch(self, progress=None) -> dict[str, float]:
         cfg = self.cfg
         self.model.train()
@@ -244,7 +280,8 @@ class Trainer:
         for i, (ia, ib) in enumerate(zip(ba, bb)):
             with self.determinism.watch():
                 out = self.step(self._to(self.words_a[ia]), self._to(self.words_b[ib]),
-                                self._next(self.next_a, self.words_a, ia), self._next(self.next_b, self.words_b, ib))
+                                self._next(self.next_a, self.words_a, ia), self._next(self.next_b, self.words_b, ib),
+                                *self._actions(ia, ib))
             for k, v in out.items():
                 sums[k] = sums.get(k, 0.0) + v
             if progress is not None:
@@ -442,7 +479,8 @@ def finish(out: Path, cfg, final: dict, log) -> None:
 
 
 def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None, resume: bool = False,
-          device: str = "auto", progress: bool = True, log=print, next_a=None, next_b=None) -> Trainer:
+          device: str = "auto", progress: bool = True, log=print, next_a=None, next_b=None,
+          actions: ActionLabels | None = None) -> Trainer:
     """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -452,14 +490,20 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
         _, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
         ref = meta["representation"].get("reference")
         reference = None if ref is None else np.asarray(ref, dtype=np.float64)
-    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b)
+    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b, actions)
     trainer.determinism.log = log
+    if trainer.content is not None:
+        log(f"action-content classifier: {len(trainer.content.classes)} actions, right on "
+            f"{trainer.content.accuracy.get('val', float('nan')):.1%} of held-out words of both styles")
     g = count_parameters(trainer.model.G_a2b)
     log(f"training {cfg.style_a}<->{cfg.style_b} ({cfg.loss}, {cfg.representation}) on {trainer.device}: "
         f"{len(words_a)}/{len(words_b)} training words, {cfg.words_per_epoch} per epoch, generator {g} parameters")
     final = run_epochs(trainer, out, math.ceil(cfg.words_per_epoch / cfg.batch_size), CSV_FIELDS, resume, progress,
                        log)
-    meta = model_metadata(cfg, trainer.rep, {"epochs_completed": trainer.epoch, "metrics": final})
+    extra = {"epochs_completed": trainer.epoch, "metrics": final}
+    if trainer.content is not None:
+        extra["action_content_accuracy"] = trainer.content.accuracy
+    meta = model_metadata(cfg, trainer.rep, extra)
     write_models(out, trainer.model_tensors(generators_only=True), trainer.average, lambda _: meta, log)
     finish(out, cfg, final, log)
     return trainer

@@ -62,7 +62,8 @@ class MultiStyleTrainConfig(TrainConfig):
 
     def to_dict(self) -> dict:
         d = super().to_dict()
-        for unused in ("style_a", "style_b", "loss", "lambda_coherence", "lambda_gram", "lambda_overlap"):
+        for unused in ("style_a", "style_b", "loss", "lambda_coherence", "lambda_gram", "lambda_overlap",
+                       "lambda_action"):
             d.pop(unused)
         return d
 
