@@ -56,6 +56,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-action", type=float, default=0.0,
                    help="weight of the loss that keeps the input's action (a frozen action classifier's "
                         "cross-entropy on the restyled words); default 0 = off")
+    p.add_argument("--lambda-style", type=float, default=0.0,
+                   help="weight of the loss that makes the restyle read as the target among all seven styles "
+                        "(a frozen style classifier's cross-entropy); default 0 = off")
     p.add_argument("--out", type=Path, required=True, help="output folder (checkpoints, losses.csv, model)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last epoch")
     p.add_argument("--max-words", type=_positive_int, help="use at most N training words per style (tiny CI runs)")
@@ -171,22 +174,24 @@ def run_train(args) -> int:
     pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
     _check_generator(args.generator, args.styles)
     if args.styles == "all":
-        if args.lambda_action:
-            from stylecast.motion.errors import UserError
+        for flag, value in (("--lambda-action", args.lambda_action), ("--lambda-style", args.lambda_style)):
+            if value:
+                from stylecast.motion.errors import UserError
 
-            raise UserError("--lambda-action is for a pair model; drop it or drop --styles all")
+                raise UserError(f"{flag} is for a pair model; drop it or drop --styles all")
         return run_train_multistyle(args)
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
-                      lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action, **_given(ema=args.ema))
+                      lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action, lambda_style=args.lambda_style,
+                      **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
     if args.style_a == args.style_b:
         raise UserError(f"--style-a and --style-b are both {args.style_a!r}; choose two different styles")
     for flag, value in (("--lambda-gram", args.lambda_gram), ("--lambda-overlap", args.lambda_overlap),
-                        ("--lambda-action", args.lambda_action)):
+                        ("--lambda-action", args.lambda_action), ("--lambda-style", args.lambda_style)):
         if not value >= 0:
             raise UserError(f"{flag} must be 0 or more, got {value:g}")
     try:
@@ -196,11 +201,15 @@ def run_train(args) -> int:
     sets = load_training_words(cfg, args.data, args.cache, progress=not args.no_progress)
     from .content import ActionLabels
     from .data import next_words
+    from .style_target import load_style_words
 
+    styles = (load_style_words(cfg, sets, args.data, args.cache, progress=not args.no_progress)
+              if cfg.lambda_style > 0 else None)
     a, b = sets[(cfg.style_a, "train")], sets[(cfg.style_b, "train")]
     train(cfg, args.out, a.words, b.words, sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,
           resume=args.resume, device=args.device, progress=not args.no_progress,
-          next_a=next_words(a), next_b=next_words(b), actions=ActionLabels.of(sets, cfg.style_a, cfg.style_b))
+          next_a=next_words(a), next_b=next_words(b), actions=ActionLabels.of(sets, cfg.style_a, cfg.style_b),
+          styles=styles)
     return 0
 
 

@@ -1,5 +1,6 @@
-"""The action-content loss (``train --lambda-action``): a restyle must keep what the
-performer is doing.
+"""Frozen classifiers the generators answer to. The action-content loss (``train
+--lambda-action``): a restyle must keep what the performer is doing. The style loss (``train
+--lambda-style``, ``style_target.py``) uses the same classifier over all seven styles.
 
 Why: the CycleGAN's losses never see the action. The cycle only asks that a way back
 exists, so the generator may move a one-hand raise towards a wave as long as its partner
@@ -33,7 +34,7 @@ from .losses import FPS
 EPOCHS = 10
 BATCH = 64
 LR = 2e-3
-SEED_OFFSET = 7919  # the classifier's weights come from (seed + this), away from the GAN's stream
+ACTION_SALT = 7919  # a classifier's weights come from (seed + salt), away from the GAN's stream
 
 
 def _with_velocity(x: torch.Tensor) -> torch.Tensor:
@@ -66,22 +67,23 @@ def action_labels(wordset, classes: list[str]) -> np.ndarray:
     return actions[wordset.file_index] if len(wordset) else np.zeros(0, np.int64)
 
 
-class ActionContent:
-    """A frozen action classifier and the loss the generators pay on it."""
+class FrozenClassifier:
+    """A classifier of channel words, trained once and then frozen, and the loss the
+    generators pay on it."""
 
-    def __init__(self, classes: list[str], features: int, seed: int):
+    def __init__(self, classes: list[str], features: int, seed: int, salt: int = ACTION_SALT):
         # fork_rng: building and training the classifier draws nothing from the GAN's random
         # stream, so a run with the loss off is bit-identical to one without this module.
+        self.seed, self.salt = seed, salt
         with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(seed + SEED_OFFSET)
+            torch.manual_seed(seed + salt)
             self.net = _net(features, len(classes))
         self.classes = list(classes)
-        self.seed = seed
         self.accuracy: dict[str, float] = {}
 
-    def fit(self, x: torch.Tensor, y: np.ndarray, device) -> "ActionContent":
-        """``x``: (N, F, T) channel words on the CPU, ``y``: their action indices."""
-        rng = np.random.default_rng((self.seed, SEED_OFFSET))
+    def fit(self, x: torch.Tensor, y: np.ndarray, device) -> "FrozenClassifier":
+        """``x``: (N, F, T) channel words on the CPU, ``y``: their class indices."""
+        rng = np.random.default_rng((self.seed, self.salt))
         counts = np.bincount(y, minlength=len(self.classes)).astype(np.float64)
         weight = torch.tensor(counts.sum() / np.maximum(counts, 1) / len(self.classes), dtype=torch.float32)
         loss_fn = nn.CrossEntropyLoss(weight=weight.to(device))
@@ -90,7 +92,7 @@ class ActionContent:
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, EPOCHS)
         labels = torch.from_numpy(np.asarray(y, np.int64))
         with torch.random.fork_rng(devices=[]):  # dropout draws, kept off the GAN's stream too
-            torch.manual_seed(self.seed + SEED_OFFSET)
+            torch.manual_seed(self.seed + self.salt)
             for _ in range(EPOCHS):
                 order = rng.permutation(len(x))
                 for i in range(0, len(order), BATCH):
@@ -111,10 +113,11 @@ class ActionContent:
 
     def score(self, name: str, x: torch.Tensor, y: np.ndarray, device) -> float:
         """Accuracy on real words, kept in ``accuracy[name]``: the loss means something only
-        if the classifier knows the actions of real held-out words."""
+        if the classifier knows the classes of real held-out words."""
         self.accuracy[name] = float(np.mean(self.predict(x, device) == y)) if len(y) else float("nan")
         return self.accuracy[name]
 
-    def loss(self, generated: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-        """Cross-entropy of the restyled words (B, F, T) against the input words' actions."""
-        return nn.functional.cross_entropy(self.net(_with_velocity(generated)), actions)
+    def loss(self, generated: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+        """Cross-entropy of the restyled words (B, F, T) against ``labels`` (B,): the input
+        words' actions, or the target style."""
+        return nn.functional.cross_entropy(self.net(_with_velocity(generated)), labels)

@@ -39,7 +39,8 @@ from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
 from .averaging import WeightAverage
-from .content import ActionContent, ActionLabels
+from .content import ActionLabels, FrozenClassifier
+from .style_target import STYLE_SALT, StyleWords
 from .device import Determinism, pick_device
 from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
 from . import representation as R
@@ -48,7 +49,8 @@ from .representation import euler_features, get_representation
 GENERATOR_PREFIXES = ("G_a2b.", "G_b2a.")
 AVERAGE_PREFIX = "average."  # the weight average's tensors in train_state.safetensors
 CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
-              "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "action_a2b", "action_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
+              "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "action_a2b", "action_b2a", "style_a2b",
+              "style_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
               "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
 
 
@@ -75,6 +77,7 @@ class TrainConfig:
     lambda_gram: float = L.LAMBDA_GRAM
     lambda_overlap: float = 0.0  # overlapping words agree (losses.overlap_loss); 0 = off
     lambda_action: float = 0.0  # the restyle keeps the input's action (content.py); 0 = off
+    lambda_style: float = 0.0  # the restyle reads as the target among all styles (style_target.py); 0 = off
     # The model written is the generators' weight average (averaging.py) with this decay; 0 =
     # the last weights. Measured over four seeds of the pair recipe (MODEL_CARD.md), the
     # average against each run's own last weights: jerk 1.08-1.14 -> 1.01-1.02, planted-foot
@@ -130,7 +133,7 @@ def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
         **shared_metadata(cfg, rep, f"styles {cfg.style_a} and {cfg.style_b}"),
         "loss": cfg.loss,
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence,
-                    "gram": cfg.lambda_gram, "action": cfg.lambda_action},
+                    "gram": cfg.lambda_gram, "action": cfg.lambda_action, "style": cfg.lambda_style},
     }
     meta.update(extra or {})
     return meta
@@ -155,10 +158,12 @@ class Trainer:
     def __init__(self, cfg: TrainConfig, words_a: np.ndarray, words_b: np.ndarray,
                  val_a: np.ndarray | None = None, val_b: np.ndarray | None = None, device: str = "auto",
                  reference: np.ndarray | None = None, next_a: np.ndarray | None = None,
-                 next_b: np.ndarray | None = None, actions: ActionLabels | None = None):
+                 next_b: np.ndarray | None = None, actions: ActionLabels | None = None,
+                 styles: StyleWords | None = None):
         """``next_a``/``next_b``: for each training word, the index of the next word of the
         same take (overlapping it by 60 - hop frames), or -1 (``data.next_words``).
-        ``actions``: every word's action, needed when ``cfg.lambda_action`` > 0."""
+        ``actions``: every word's action, needed when ``cfg.lambda_action`` > 0.
+        ``styles``: words of every style, needed when ``cfg.lambda_style`` > 0."""
         import torch
 
         if cfg.loss not in L.LOSS_KINDS:
@@ -186,6 +191,9 @@ class Trainer:
         self.content = self.actions = None
         if cfg.lambda_action > 0:
             self._fit_content(actions, val_a, val_b)
+        self.style_judge = self.style_targets = None
+        if cfg.lambda_style > 0:
+            self._fit_style(styles)
 
     def _fit_content(self, actions: ActionLabels | None, val_a, val_b) -> None:
         """Train the frozen action classifier of the content loss on both styles' training
@@ -194,14 +202,39 @@ class Trainer:
 
         if actions is None:
             raise UserError("--lambda-action needs the action of every training word; train from the dataset folder")
-        channels = lambda words: to_channels(words if torch.is_tensor(words) else torch.from_numpy(self._encode(words)))
+        channels = self._channels
         x = torch.cat([channels(self.words_a), channels(self.words_b)])
-        self.content = ActionContent(actions.classes, x.shape[1], self.cfg.seed).fit(
+        self.content = FrozenClassifier(actions.classes, x.shape[1], self.cfg.seed).fit(
             x, np.concatenate([actions.train_a, actions.train_b]), self.device)
         if val_a is not None and val_b is not None and len(val_a) and len(val_b):
             self.content.score("val", torch.cat([channels(val_a), channels(val_b)]),
                                np.concatenate([actions.val_a, actions.val_b]), self.device)
         self.actions = (torch.from_numpy(actions.train_a), torch.from_numpy(actions.train_b))
+
+    def _fit_style(self, styles: StyleWords | None) -> None:
+        """Train the frozen seven-style classifier of the style loss on training words of
+        every style, and score it on their held-out words."""
+        import torch
+
+        cfg = self.cfg
+        if styles is None or cfg.style_a not in styles.classes or cfg.style_b not in styles.classes:
+            raise UserError("--lambda-style needs training words of every style; train from the dataset folder")
+        words, labels = styles.labelled("train")
+        x = torch.cat([self._channels(w) for w in words])
+        self.style_judge = FrozenClassifier(list(styles.classes), x.shape[1], cfg.seed, STYLE_SALT).fit(
+            x, labels, self.device)
+        words, labels = styles.labelled("val")
+        if len(labels):
+            self.style_judge.score("val", torch.cat([self._channels(w) for w in words]), labels, self.device)
+        # The targets of G_a2b and G_b2a, as 0-d tensors a batch's labels expand from.
+        self.style_targets = tuple(torch.tensor(styles.classes.index(s), device=self.device)
+                                   for s in (cfg.style_b, cfg.style_a))
+
+    def _channels(self, words):
+        """Channel words (N, F, T) on the CPU from quaternion words or encoded tensors."""
+        import torch
+
+        return to_channels(words if torch.is_tensor(words) else torch.from_numpy(self._encode(words)))
 
     # -- one step ---------------------------------------------------------------------
     def step(self, a, b, a_next=None, b_next=None, a_actions=None, b_actions=None) -> dict[str, float]:
@@ -231,6 +264,13 @@ class Trainer:
             if self.content is not None and actions is not None:
                 loss = self.content.loss(fake, actions)
                 total = total + cfg.lambda_action * loss
+                extras[name] = loss.item()
+            else:
+                extras[name] = 0.0
+        for name, fake, target in zip(("style_a2b", "style_b2a"), (fake_b, fake_a), self.style_targets or (None, None)):
+            if target is not None:
+                loss = self.style_judge.loss(fake, target.expand(len(fake)))
+                total = total + cfg.lambda_style * loss
                 extras[name] = loss.item()
             else:
                 extras[name] = 0.0
@@ -480,7 +520,7 @@ def finish(out: Path, cfg, final: dict, log) -> None:
 
 def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None, resume: bool = False,
           device: str = "auto", progress: bool = True, log=print, next_a=None, next_b=None,
-          actions: ActionLabels | None = None) -> Trainer:
+          actions: ActionLabels | None = None, styles: StyleWords | None = None) -> Trainer:
     """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -490,11 +530,14 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
         _, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
         ref = meta["representation"].get("reference")
         reference = None if ref is None else np.asarray(ref, dtype=np.float64)
-    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b, actions)
+    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b, actions, styles)
     trainer.determinism.log = log
     if trainer.content is not None:
         log(f"action-content classifier: {len(trainer.content.classes)} actions, right on "
             f"{trainer.content.accuracy.get('val', float('nan')):.1%} of held-out words of both styles")
+    if trainer.style_judge is not None:
+        log(f"style classifier: {len(trainer.style_judge.classes)} styles, right on "
+            f"{trainer.style_judge.accuracy.get('val', float('nan')):.1%} of held-out words of every style")
     g = count_parameters(trainer.model.G_a2b)
     log(f"training {cfg.style_a}<->{cfg.style_b} ({cfg.loss}, {cfg.representation}) on {trainer.device}: "
         f"{len(words_a)}/{len(words_b)} training words, {cfg.words_per_epoch} per epoch, generator {g} parameters")
@@ -503,6 +546,8 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
     extra = {"epochs_completed": trainer.epoch, "metrics": final}
     if trainer.content is not None:
         extra["action_content_accuracy"] = trainer.content.accuracy
+    if trainer.style_judge is not None:
+        extra["style_classifier_accuracy"] = trainer.style_judge.accuracy
     meta = model_metadata(cfg, trainer.rep, extra)
     write_models(out, trainer.model_tensors(generators_only=True), trainer.average, lambda _: meta, log)
     finish(out, cfg, final, log)

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from stylecast.cli import main
-from stylecast.models.content import ActionContent, ActionLabels
+from stylecast.models.content import ActionLabels, FrozenClassifier
 from stylecast.models.train import Trainer
 from stylecast.motion.errors import UserError
 
@@ -29,7 +29,7 @@ def gesture_words(n: int, channel: int, seed: int) -> torch.Tensor:
 
 
 def test_the_classifier_learns_the_gestures_and_its_loss_rises_when_the_gesture_changes():
-    content = ActionContent(["raise", "wave"], F, seed=0)
+    content = FrozenClassifier(["raise", "wave"], F, seed=0)
     x = torch.cat([gesture_words(128, 10, 1), gesture_words(128, 40, 2)])
     y = np.repeat([0, 1], 128)
     content.fit(x, y, "cpu")
