@@ -184,8 +184,8 @@ def run_train(args) -> int:
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
-                      lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action, lambda_style=args.lambda_style,
-                      **_given(ema=args.ema))
+                      lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
+                      lambda_style=args.lambda_style, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
     if args.style_a == args.style_b:

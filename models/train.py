@@ -202,12 +202,11 @@ class Trainer:
 
         if actions is None:
             raise UserError("--lambda-action needs the action of every training word; train from the dataset folder")
-        channels = self._channels
-        x = torch.cat([channels(self.words_a), channels(self.words_b)])
+        x = torch.cat([self._channels(self.words_a), self._channels(self.words_b)])
         self.content = FrozenClassifier(actions.classes, x.shape[1], self.cfg.seed).fit(
             x, np.concatenate([actions.train_a, actions.train_b]), self.device)
         if val_a is not None and val_b is not None and len(val_a) and len(val_b):
-            self.content.score("val", torch.cat([channels(val_a), channels(val_b)]),
+            self.content.score("val", torch.cat([self._channels(val_a), self._channels(val_b)]),
                                np.concatenate([actions.val_a, actions.val_b]), self.device)
         self.actions = (torch.from_numpy(actions.train_a), torch.from_numpy(actions.train_b))
 
