@@ -149,18 +149,20 @@ def run_train_multistyle(args) -> int:
     from .multistyle import GENERATORS, MultiStyleConfig
     from .train_multistyle import MultiStyleTrainConfig, load_all_styles, train_multistyle
 
-    if not args.lambda_identity >= 0:
-        raise UserError(f"--lambda-identity must be 0 or more, got {args.lambda_identity:g}")
+    for flag, value in (("--lambda-identity", args.lambda_identity), ("--lambda-action", args.lambda_action)):
+        if not value >= 0:
+            raise UserError(f"{flag} must be 0 or more, got {value:g}")
     try:
         net = MultiStyleConfig(**GENERATORS[args.generator], **_given(correction_knots=args.knots))
     except ValueError as exc:
         raise UserError(f"--knots: {exc}") from None
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
-                                max_words=args.max_words, lambda_identity=args.lambda_identity, network=net,
+                                max_words=args.max_words, lambda_identity=args.lambda_identity,
+                                lambda_action=args.lambda_action, network=net,
                                 **_given(ema=args.ema, epochs=args.epochs, words_per_epoch=args.words_per_epoch))
-    train, val = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
+    train, val, actions = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
     train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress,
-                     resume=args.resume)
+                     resume=args.resume, actions=actions)
     return 0
 
 
@@ -174,11 +176,10 @@ def run_train(args) -> int:
     pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
     _check_generator(args.generator, args.styles)
     if args.styles == "all":
-        for flag, value in (("--lambda-action", args.lambda_action), ("--lambda-style", args.lambda_style)):
-            if value:
-                from stylecast.motion.errors import UserError
+        if args.lambda_style:
+            from stylecast.motion.errors import UserError
 
-                raise UserError(f"{flag} is for a pair model; drop it or drop --styles all")
+            raise UserError("--lambda-style is for a pair model; drop it or drop --styles all")
         return run_train_multistyle(args)
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),

@@ -7,7 +7,9 @@ to a target t != s drawn at random, G(x, t), and back to its own style, G(G(x, t
 L_cycle and L_diff are taken on that cycle. The adversarial term asks the discriminator's
 head t to take G(x, t) for real; the discriminator learns real words of style s on head s
 and generated ones on the head of their target. An identity term
-(lambda_identity |G(x, s) - x|) is optional (default off).
+(lambda_identity |G(x, s) - x|) and the action-content term of the pair recipe
+(lambda_action, ``content.py``: a frozen action classifier trained on every style's words
+first; G(x, t) keeps x's action) are optional (default off).
 
 One epoch = ``words_per_epoch`` words, an equal share from every style, drawn without
 replacement with a generator seeded by (seed, epoch); targets come from the same
@@ -35,6 +37,7 @@ from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
 from .averaging import WeightAverage
+from .content import FrozenClassifier, action_labels
 from .device import Determinism, pick_device
 from .multistyle import MultiStyleConfig, MultiStyleGAN
 from .networks import count_parameters, to_channels
@@ -46,7 +49,7 @@ from .train import (TrainConfig, finish, read_train_state, run_epochs, shared_me
 KIND = "multistyle"
 GENERATOR_PREFIX = "G."
 CODE_TABLE = GENERATOR_PREFIX + "codes.table"
-FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "G_total",
+FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "action", "G_total",
           "val_cycle", "val_diff")
 
 
@@ -63,7 +66,7 @@ class MultiStyleTrainConfig(TrainConfig):
     def to_dict(self) -> dict:
         d = super().to_dict()
         for unused in ("style_a", "style_b", "loss", "lambda_coherence", "lambda_gram", "lambda_overlap",
-                       "lambda_action", "lambda_style"):
+                       "lambda_style"):
             d.pop(unused)
         return d
 
@@ -90,16 +93,28 @@ def multistyle_metadata(cfg, rep, code_table, extra: dict | None = None) -> dict
         "style_codes": code_table.detach().cpu().numpy().round(6).tolist(),
         **shared_metadata(cfg, rep, f"all {len(STYLES)} styles ({', '.join(STYLES)})"),
         "loss": "cycle-diff, any pair (x -> target -> own style)",
-        "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "identity": cfg.lambda_identity},
+        "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "identity": cfg.lambda_identity,
+                    "action": cfg.lambda_action},
     }
     meta.update(extra or {})
     return meta
 
 
-class MultiStyleTrainer:
-    """``words``: {style: heading-free quaternion words (N, 60, J, 4)} for every style."""
+@dataclass
+class StyleActions:
+    """The action of every word ``load_all_styles`` read: {style: indices into ``classes``}."""
 
-    def __init__(self, cfg, words: dict, val: dict | None = None, device: str = "auto"):
+    classes: list[str]
+    train: dict
+    val: dict
+
+
+class MultiStyleTrainer:
+    """``words``: {style: heading-free quaternion words (N, 60, J, 4)} for every style;
+    ``actions``: their actions, needed when ``cfg.lambda_action`` > 0."""
+
+    def __init__(self, cfg, words: dict, val: dict | None = None, device: str = "auto",
+                 actions: StyleActions | None = None):
         import torch
 
         missing = [s for s in STYLES if len(words.get(s, ())) == 0]
@@ -121,6 +136,25 @@ class MultiStyleTrainer:
         self.epoch = 0
         self.eye = torch.eye(len(STYLES), device=self.device)
         self.average = WeightAverage(self.model, (GENERATOR_PREFIX,), cfg.ema) if cfg.ema > 0 else None
+        self.content = self.actions = None
+        if cfg.lambda_action > 0:
+            self._fit_content(actions)
+
+    def _fit_content(self, actions: StyleActions | None) -> None:
+        """The frozen action classifier of the content loss, trained on every style's words
+        and scored on the held-out ones."""
+        import torch
+
+        if actions is None or any(len(actions.train.get(s, ())) != len(w) for s, w in zip(STYLES, self.words)):
+            raise UserError("--lambda-action needs the action of every training word; train from the dataset folder")
+        self.actions = [torch.from_numpy(np.asarray(actions.train[s], np.int64)) for s in STYLES]
+        x = torch.cat([to_channels(w) for w in self.words])
+        self.content = FrozenClassifier(actions.classes, x.shape[1], self.cfg.seed).fit(
+            x, torch.cat(self.actions).numpy(), self.device)
+        if self.val is not None:
+            self.content.score("val", torch.cat([to_channels(w) for _, w in self.val]),
+                               np.concatenate([actions.val[s][:len(w)] for s, (_, w) in zip(STYLES, self.val)]),
+                               self.device)
 
     def _encode(self, words: np.ndarray) -> np.ndarray:
         out = np.empty((*words.shape[:3], self.rep.channels), np.float32)
@@ -128,7 +162,9 @@ class MultiStyleTrainer:
             out[i:i + 2048] = self.rep.encode(words[i:i + 2048])
         return out
 
-    def step(self, x, src, tgt) -> dict[str, float]:
+    def step(self, x, src, tgt, actions=None) -> dict[str, float]:
+        """One update on words ``x`` of styles ``src`` sent to ``tgt``; ``actions``: the
+        words' actions (for the content loss), or None."""
         m, cfg = self.model, self.cfg
         for p in m.discriminators():
             p.requires_grad_(False)
@@ -143,6 +179,11 @@ class MultiStyleTrainer:
             idl = L.cycle_loss(m.G(x, self.eye[src]), x)
             total = total + cfg.lambda_identity * idl
             ident = idl.item()
+        action = 0.0
+        if self.content is not None and actions is not None:
+            acl = self.content.loss(fake, actions)
+            total = total + cfg.lambda_action * acl
+            action = acl.item()
         self.opt_g.zero_grad(set_to_none=True)
         total.backward()
         self.opt_g.step()
@@ -155,7 +196,7 @@ class MultiStyleTrainer:
         d.backward()
         self.opt_d.step()
         return {"G_adv": adv.item(), "D": d.item(), "cycle": cyc.item(), "diff": dif.item(), "identity": ident,
-                "G_total": total.item()}
+                "action": action, "G_total": total.item()}
 
     def epoch_plan(self, rng: np.random.Generator) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Batches of (style, word index, target) for one epoch, equal shares per style."""
@@ -182,9 +223,11 @@ class MultiStyleTrainer:
         plan = self.epoch_plan(rng)
         for src, idx, tgt in plan:
             x = torch.stack([self.words[s][i] for s, i in zip(src, idx)])
+            actions = None if self.actions is None else torch.stack(
+                [self.actions[s][i] for s, i in zip(src, idx)]).to(self.device)
             with self.determinism.watch():
                 out = self.step(to_channels(x).to(self.device), torch.from_numpy(src).to(self.device),
-                                torch.from_numpy(tgt).to(self.device))
+                                torch.from_numpy(tgt).to(self.device), actions)
             for k, v in out.items():
                 sums[k] = sums.get(k, 0.0) + v
             if progress is not None:
@@ -230,30 +273,42 @@ class MultiStyleTrainer:
 
 
 def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, device: str = "auto",
-                     progress: bool = True, log=print, resume: bool = False) -> MultiStyleTrainer:
+                     progress: bool = True, log=print, resume: bool = False,
+                     actions: StyleActions | None = None) -> MultiStyleTrainer:
     """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    trainer = MultiStyleTrainer(cfg, words, val, device)
+    trainer = MultiStyleTrainer(cfg, words, val, device, actions)
     trainer.determinism.log = log
+    extra = {}
+    if trainer.content is not None:
+        extra["action_content_accuracy"] = trainer.content.accuracy
+        log(f"action-content classifier: {len(trainer.content.classes)} actions, right on "
+            f"{trainer.content.accuracy.get('val', float('nan')):.1%} of held-out words of every style")
     steps = len(trainer.epoch_plan(np.random.default_rng(0)))
     log(f"training all {len(STYLES)} styles in one model on {trainer.device}: "
         + ", ".join(f"{s} {len(w)}" for s, w in zip(STYLES, trainer.words))
         + f" training words, {cfg.words_per_epoch} per epoch, generator {count_parameters(trainer.model.G)} parameters")
     final = run_epochs(trainer, out, steps, FIELDS, resume, progress, log)
-    trainer.save_models(out, {"epochs_completed": trainer.epoch, "metrics": final}, log)
+    trainer.save_models(out, {"epochs_completed": trainer.epoch, "metrics": final, **extra}, log)
     finish(out, cfg, final, log)
     return trainer
 
 
-def load_all_styles(cfg, data_dir=None, cache_dir=None, progress: bool = True, log=print) -> tuple[dict, dict]:
-    """({style: training words}, {style: validation words}), heading-free quaternions."""
+def load_all_styles(cfg, data_dir=None, cache_dir=None, progress: bool = True,
+                    log=print) -> tuple[dict, dict, StyleActions]:
+    """({style: training words}, {style: validation words}, their actions), heading-free
+    quaternions."""
     t0 = time.perf_counter()
-    train, val = {}, {}
+    sets = {}
     per_val = max(1, cfg.val_words // len(STYLES))
     for s in STYLES:
-        train[s] = D.load_wordset(s, "train", data_dir, cache_dir, cfg.hop, cfg.max_words, progress).words
+        sets[s, "train"] = D.load_wordset(s, "train", data_dir, cache_dir, cfg.hop, cfg.max_words, progress)
         cap = per_val if cfg.max_words is None else min(per_val, cfg.max_words)
-        val[s] = D.load_wordset(s, "val", data_dir, cache_dir, cfg.hop, cap, progress).words
-    log(f"loaded words in {time.perf_counter() - t0:.1f} s: " + ", ".join(f"{s} {len(train[s])}" for s in STYLES))
-    return train, val
+        sets[s, "val"] = D.load_wordset(s, "val", data_dir, cache_dir, cfg.hop, cap, progress)
+    log(f"loaded words in {time.perf_counter() - t0:.1f} s: "
+        + ", ".join(f"{s} {len(sets[s, 'train'])}" for s in STYLES))
+    classes = sorted({f.action for ws in sets.values() for f in ws.files})
+    labels = {key: action_labels(ws, classes) for key, ws in sets.items()}
+    return ({s: sets[s, "train"].words for s in STYLES}, {s: sets[s, "val"].words for s in STYLES},
+            StyleActions(classes, {s: labels[s, "train"] for s in STYLES}, {s: labels[s, "val"] for s in STYLES}))

@@ -8,10 +8,15 @@ import torch
 
 from stylecast.cli import main
 from stylecast.models.content import ActionLabels, FrozenClassifier
+from stylecast.models.data import load_wordset
+from stylecast.models.styles import STYLES
 from stylecast.models.train import Trainer
+from stylecast.models.train_multistyle import MultiStyleTrainer, StyleActions, load_all_styles
 from stylecast.motion.errors import UserError
 
 from .test_models import _tiny_cfg, synthetic_words
+from .test_multistyle import _tiny_cfg as _tiny_multistyle_cfg
+from .test_multistyle import _tiny_words
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
@@ -72,9 +77,47 @@ def test_the_loss_without_actions_is_refused_in_one_sentence():
 
 @pytest.mark.parametrize("args, message", [
     (["--lambda-action", "-1"], "--lambda-action must be 0 or more"),
-    (["--lambda-action", "1", "--styles", "all"], "--lambda-action is for a pair model"),
+    (["--lambda-action", "-1", "--styles", "all"], "--lambda-action must be 0 or more"),
 ])
 def test_bad_lambda_action_is_refused_before_any_data_is_read(tmp_path, capsys, args, message):
     code = main(["train", "--out", str(tmp_path / "run"), "--data", str(tmp_path / "nowhere"), *args])
     err = capsys.readouterr().err
     assert code == 2 and message in err and err.count("\n") == 1
+
+
+def _style_actions(words: dict) -> StyleActions:
+    labels = {s: np.arange(len(w)) % 2 for s, w in words.items()}
+    return StyleActions(["raise", "wave"], labels, {s: v[:4] for s, v in labels.items()})
+
+
+def test_the_multistyle_trainer_pays_the_loss_too_and_leaves_its_gan_stream_alone():
+    words = _tiny_words()
+    val = {s: w[:4] for s, w in words.items()}
+    off = MultiStyleTrainer(_tiny_multistyle_cfg(), words, val, device="cpu")
+    on = MultiStyleTrainer(_tiny_multistyle_cfg(lambda_action=1.0), words, val, device="cpu",
+                           actions=_style_actions(words))
+    start_off, start_on = off.model.state_dict(), on.model.state_dict()
+    assert all(torch.equal(start_off[k], start_on[k]) for k in start_off)
+    row_off, row_on = off.run_epoch(), on.run_epoch()
+    assert row_off["action"] == 0.0 and row_on["action"] > 0.0
+    after_off, after_on = off.model.state_dict(), on.model.state_dict()
+    assert any(k.startswith("G.") and not torch.equal(after_off[k], after_on[k]) for k in after_off)
+    assert set(on.content.accuracy) == {"val"}
+    with pytest.raises(UserError, match="needs the action of every training word"):
+        MultiStyleTrainer(_tiny_multistyle_cfg(lambda_action=1.0), words, device="cpu")
+    assert len(STYLES) == len(on.actions)
+
+
+def test_load_all_styles_gives_each_word_the_action_of_its_take(bandai_root, tmp_path):
+    cfg, data = _tiny_multistyle_cfg(max_words=3, val_words=7), bandai_root / "dataset-2" / "data"
+    train, val, actions = load_all_styles(cfg, data, tmp_path, progress=False, log=lambda *_: None)
+    elderly = load_wordset("elderly", "val", data, tmp_path, cfg.hop, 1)  # the same words, read again
+    assert np.array_equal(elderly.words, val["elderly"])
+    assert [actions.classes[a] for a in actions.val["elderly"]] == [elderly.files[i].action
+                                                                     for i in elderly.file_index]
+    for style in STYLES:
+        assert len(actions.train[style]) == len(train[style]) and len(actions.val[style]) == len(val[style])
+        assert all(0 <= a < len(actions.classes) for a in actions.train[style])
+    assert set(actions.classes) <= {"raise-up-both-hands", "raise-up-left-hand", "raise-up-right-hand", "run",
+                                    "walk", "walk-turn-left", "walk-turn-right", "wave-both-hands",
+                                    "wave-left-hand", "wave-right-hand"}
