@@ -78,8 +78,10 @@ def test_the_loss_without_actions_is_refused_in_one_sentence():
 @pytest.mark.parametrize("args, message", [
     (["--lambda-action", "-1"], "--lambda-action must be 0 or more"),
     (["--lambda-action", "-1", "--styles", "all"], "--lambda-action must be 0 or more"),
+    (["--lambda-style", "-1"], "--lambda-style must be 0 or more"),
+    (["--lambda-style", "1", "--styles", "all"], "--lambda-style is for a pair model"),
 ])
-def test_bad_lambda_action_is_refused_before_any_data_is_read(tmp_path, capsys, args, message):
+def test_bad_classifier_loss_weights_are_refused_before_any_data_is_read(tmp_path, capsys, args, message):
     code = main(["train", "--out", str(tmp_path / "run"), "--data", str(tmp_path / "nowhere"), *args])
     err = capsys.readouterr().err
     assert code == 2 and message in err and err.count("\n") == 1

@@ -7,7 +7,6 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from stylecast.cli import main
 from stylecast.models import style_target
 from stylecast.models.data import WordSet
 from stylecast.models.style_target import StyleWords, load_style_words
@@ -76,12 +75,3 @@ def test_style_words_keep_the_pair_and_read_a_few_words_of_every_other_style(ban
     words, labels = styles.labelled("train")
     assert len(labels) == sum(len(w) for w in words) and set(labels) == set(range(7))
 
-
-@pytest.mark.parametrize("args, message", [
-    (["--lambda-style", "-1"], "--lambda-style must be 0 or more"),
-    (["--lambda-style", "1", "--styles", "all"], "--lambda-style is for a pair model"),
-])
-def test_bad_lambda_style_is_refused_before_any_data_is_read(tmp_path, capsys, args, message):
-    code = main(["train", "--out", str(tmp_path / "run"), "--data", str(tmp_path / "nowhere"), *args])
-    err = capsys.readouterr().err
-    assert code == 2 and message in err and err.count("\n") == 1
