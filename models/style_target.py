@@ -3,8 +3,8 @@ among all seven, not merely as "not the source".
 
 Why: the pair CycleGAN's discriminator only learns "real exhausted or restyled". Anything
 it cannot tell from exhausted passes: the first shipped model's walks read as youthful, and
-today's restyled walks and turns still read as exhausted in only 40-74 % of their windows
-(the rest mostly normal) while raises and waves do in all of them.
+restyled walks and turns (seed 1 with the action loss) read as exhausted in only 40-74 % of
+their windows (the rest mostly normal) while raises and waves do in all of them.
 
 Measured (MODEL_CARD.md, "Action-content and style losses"): it does not work. The
 classifier is satisfied within two epochs while the evaluation's judge reads fewer windows
