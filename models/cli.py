@@ -209,7 +209,7 @@ def run_train(args) -> int:
     a, b = sets[(cfg.style_a, "train")], sets[(cfg.style_b, "train")]
     train(cfg, args.out, a.words, b.words, sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,
           resume=args.resume, device=args.device, progress=not args.no_progress,
-          next_a=next_words(a), next_b=next_words(b), actions=ActionLabels.of(sets, cfg.style_a, cfg.style_b),
+          next_a=next_words(a), next_b=next_words(b), actions=ActionLabels.of(sets),
           styles=styles)
     return 0
 

@@ -45,20 +45,20 @@ def _with_velocity(x: torch.Tensor) -> torch.Tensor:
 
 @dataclass
 class ActionLabels:
-    """The action of every word the pair trainer is given: indices into ``classes``."""
+    """The action of every word a trainer is given, {style: indices into ``classes``}, for
+    the training and the held-out words."""
 
     classes: list[str]
-    train_a: np.ndarray
-    train_b: np.ndarray
-    val_a: np.ndarray
-    val_b: np.ndarray
+    train: dict
+    val: dict
 
     @classmethod
-    def of(cls, sets: dict, style_a: str, style_b: str) -> "ActionLabels":
-        """From ``train.load_training_words``'s word sets."""
+    def of(cls, sets: dict) -> "ActionLabels":
+        """From word sets keyed (style, "train" | "val") (``data.WordSet``), as the pair's
+        ``train.load_training_words`` and the multistyle ``load_all_styles`` read them."""
         classes = sorted({f.action for ws in sets.values() for f in ws.files})
-        return cls(classes, *(action_labels(sets[key], classes) for key in
-                              ((style_a, "train"), (style_b, "train"), (style_a, "val"), (style_b, "val"))))
+        split = lambda name: {style: action_labels(ws, classes) for (style, s), ws in sets.items() if s == name}
+        return cls(classes, split("train"), split("val"))
 
 
 def action_labels(wordset, classes: list[str]) -> np.ndarray:

@@ -204,11 +204,12 @@ class Trainer:
             raise UserError("--lambda-action needs the action of every training word; train from the dataset folder")
         x = torch.cat([self._channels(self.words_a), self._channels(self.words_b)])
         self.content = FrozenClassifier(actions.classes, x.shape[1], self.cfg.seed).fit(
-            x, np.concatenate([actions.train_a, actions.train_b]), self.device)
+            x, np.concatenate([actions.train[self.cfg.style_a], actions.train[self.cfg.style_b]]), self.device)
         if val_a is not None and val_b is not None and len(val_a) and len(val_b):
             self.content.score("val", torch.cat([self._channels(val_a), self._channels(val_b)]),
-                               np.concatenate([actions.val_a, actions.val_b]), self.device)
-        self.actions = (torch.from_numpy(actions.train_a), torch.from_numpy(actions.train_b))
+                               np.concatenate([actions.val[self.cfg.style_a], actions.val[self.cfg.style_b]]),
+                               self.device)
+        self.actions = tuple(torch.from_numpy(actions.train[s]) for s in (self.cfg.style_a, self.cfg.style_b))
 
     def _fit_style(self, styles: StyleWords | None) -> None:
         """Train the frozen seven-style classifier of the style loss on training words of

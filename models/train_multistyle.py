@@ -37,7 +37,7 @@ from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
 from .averaging import WeightAverage
-from .content import FrozenClassifier, action_labels
+from .content import ActionLabels, FrozenClassifier
 from .device import Determinism, pick_device
 from .multistyle import MultiStyleConfig, MultiStyleGAN
 from .networks import count_parameters, to_channels
@@ -100,21 +100,12 @@ def multistyle_metadata(cfg, rep, code_table, extra: dict | None = None) -> dict
     return meta
 
 
-@dataclass
-class StyleActions:
-    """The action of every word ``load_all_styles`` read: {style: indices into ``classes``}."""
-
-    classes: list[str]
-    train: dict
-    val: dict
-
-
 class MultiStyleTrainer:
     """``words``: {style: heading-free quaternion words (N, 60, J, 4)} for every style;
     ``actions``: their actions, needed when ``cfg.lambda_action`` > 0."""
 
     def __init__(self, cfg, words: dict, val: dict | None = None, device: str = "auto",
-                 actions: StyleActions | None = None):
+                 actions: ActionLabels | None = None):
         import torch
 
         missing = [s for s in STYLES if len(words.get(s, ())) == 0]
@@ -140,14 +131,14 @@ class MultiStyleTrainer:
         if cfg.lambda_action > 0:
             self._fit_content(actions)
 
-    def _fit_content(self, actions: StyleActions | None) -> None:
+    def _fit_content(self, actions: ActionLabels | None) -> None:
         """The frozen action classifier of the content loss, trained on every style's words
         and scored on the held-out ones."""
         import torch
 
         if actions is None or any(len(actions.train.get(s, ())) != len(w) for s, w in zip(STYLES, self.words)):
             raise UserError("--lambda-action needs the action of every training word; train from the dataset folder")
-        self.actions = [torch.from_numpy(np.asarray(actions.train[s], np.int64)) for s in STYLES]
+        self.actions = [torch.from_numpy(actions.train[s]) for s in STYLES]
         x = torch.cat([to_channels(w) for w in self.words])
         self.content = FrozenClassifier(actions.classes, x.shape[1], self.cfg.seed).fit(
             x, torch.cat(self.actions).numpy(), self.device)
@@ -274,7 +265,7 @@ class MultiStyleTrainer:
 
 def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, device: str = "auto",
                      progress: bool = True, log=print, resume: bool = False,
-                     actions: StyleActions | None = None) -> MultiStyleTrainer:
+                     actions: ActionLabels | None = None) -> MultiStyleTrainer:
     """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -296,7 +287,7 @@ def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, devic
 
 
 def load_all_styles(cfg, data_dir=None, cache_dir=None, progress: bool = True,
-                    log=print) -> tuple[dict, dict, StyleActions]:
+                    log=print) -> tuple[dict, dict, ActionLabels]:
     """({style: training words}, {style: validation words}, their actions), heading-free
     quaternions."""
     t0 = time.perf_counter()
@@ -308,7 +299,5 @@ def load_all_styles(cfg, data_dir=None, cache_dir=None, progress: bool = True,
         sets[s, "val"] = D.load_wordset(s, "val", data_dir, cache_dir, cfg.hop, cap, progress)
     log(f"loaded words in {time.perf_counter() - t0:.1f} s: "
         + ", ".join(f"{s} {len(sets[s, 'train'])}" for s in STYLES))
-    classes = sorted({f.action for ws in sets.values() for f in ws.files})
-    labels = {key: action_labels(ws, classes) for key, ws in sets.items()}
     return ({s: sets[s, "train"].words for s in STYLES}, {s: sets[s, "val"].words for s in STYLES},
-            StyleActions(classes, {s: labels[s, "train"] for s in STYLES}, {s: labels[s, "val"] for s in STYLES}))
+            ActionLabels.of(sets))

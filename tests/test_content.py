@@ -11,7 +11,7 @@ from stylecast.models.content import ActionLabels, FrozenClassifier
 from stylecast.models.data import load_wordset
 from stylecast.models.styles import STYLES
 from stylecast.models.train import Trainer
-from stylecast.models.train_multistyle import MultiStyleTrainer, StyleActions, load_all_styles
+from stylecast.models.train_multistyle import MultiStyleTrainer, load_all_styles
 from stylecast.motion.errors import UserError
 
 from .test_models import _tiny_cfg, synthetic_words
@@ -50,7 +50,7 @@ def test_the_classifier_learns_the_gestures_and_its_loss_rises_when_the_gesture_
 
 def _labels(n_a: int, n_b: int) -> ActionLabels:
     a, b = np.arange(n_a) % 2, np.arange(n_b) % 2
-    return ActionLabels(["raise", "wave"], a, b, a[:4], b[:4])
+    return ActionLabels(["raise", "wave"], {"normal": a, "exhausted": b}, {"normal": a[:4], "exhausted": b[:4]})
 
 
 def test_the_loss_leaves_the_gan_stream_alone_and_reaches_the_generators():
@@ -87,9 +87,9 @@ def test_bad_classifier_loss_weights_are_refused_before_any_data_is_read(tmp_pat
     assert code == 2 and message in err and err.count("\n") == 1
 
 
-def _style_actions(words: dict) -> StyleActions:
+def _style_actions(words: dict) -> ActionLabels:
     labels = {s: np.arange(len(w)) % 2 for s, w in words.items()}
-    return StyleActions(["raise", "wave"], labels, {s: v[:4] for s, v in labels.items()})
+    return ActionLabels(["raise", "wave"], labels, {s: v[:4] for s, v in labels.items()})
 
 
 def test_the_multistyle_trainer_pays_the_loss_too_and_leaves_its_gan_stream_alone():
