@@ -22,6 +22,8 @@ def _unit(s: str) -> float:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from .judges import PANEL  # no torch at import time
+
     p = sub.add_parser("train", help="train a CycleGAN restyler between two styles of the Bandai dataset-2")
     p.add_argument("--style-a", default="normal", help="style A (default normal)")
     p.add_argument("--style-b", default="exhausted", help="style B (default exhausted)")
@@ -109,7 +111,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--data", type=Path)
     p.add_argument("--cache", type=Path)
     p.add_argument("--threads", type=_positive_int)
-    p.add_argument("--seed", type=int, default=0, help="seed of the evaluation classifiers")
+    p.add_argument("--seed", type=int, default=0, help="seed of the first judge of each kind (the others: seed+1, ...)")
+    p.add_argument("--judges", type=_positive_int, default=PANEL,
+                   help=f"judges of each kind in the panel (default {PANEL}); the goals are read on the worst")
     p.set_defaults(func=run_eval)
 
 
@@ -245,6 +249,6 @@ def run_eval(args) -> int:
     _threads(args.threads)
     path = evaluate(args.model, args.out, variants, max_files=args.max_files, hop=args.hop or DEFAULT_HOP,
                     data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction,
-                    targets=args.target, source=args.source)
+                    targets=args.target, source=args.source, panel=args.judges)
     print(f"wrote {path}")
     return 0

@@ -24,6 +24,8 @@ overall and per action:
 * FMD: Frechet distance of the style classifier's pooled features between restyled
   windows and real held-out windows of the target style; floor = real training windows
   of the target style against the same held-out ones;
+  (each of these three by every judge of a panel trained from different seeds: the panel's
+  mean is shown, and the goals are read on its worst judge; ``judges.py`` says why)
 * jerk ratio per joint group (output / input), beside the same ratio of real target-style
   clips to real source-style clips of each action;
 * planted-foot slide: horizontal foot speed where the input's foot is planted (output /
@@ -50,7 +52,7 @@ from . import data as D
 from . import metrics as M
 from . import representation as R
 from .baselines import PostureRestyler
-from .judges import Judges, judge_windows, training_motions
+from .judges import PANEL, Judges, judge_windows, training_motions
 from .restyle import padding, restyle_rotations
 from .restyler import Restyler
 
@@ -179,17 +181,24 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
     g_in, g_out = M.group_means(jin), M.group_means(jout)
     s_in = np.concatenate([c["slide_in"] for c in per_clip])
     s_out = np.concatenate([c["slide_out"] for c in per_clip])
-    pred = np.concatenate(windows_pred) if windows_pred else np.zeros(0, int)
-    act = np.concatenate(windows_action) if windows_action else np.zeros(0, int)
-    truth = np.concatenate([np.full(len(w), a) for w, a in zip(windows_pred, actions_true)]) if windows_pred else act
+    # Votes are (judges, windows): every figure read by the judges is given per judge and
+    # as the panel's mean (report.py reads the goals on the worst judge).
+    pred = np.concatenate(windows_pred, axis=1) if windows_pred else np.zeros((1, 0), int)
+    act = np.concatenate(windows_action, axis=1) if windows_action else np.zeros((1, 0), int)
+    truth = np.concatenate([np.full(w.shape[1], a) for w, a in zip(windows_pred, actions_true)]) \
+        if windows_pred else np.zeros(0, int)
+    style_by_judge = [float(np.mean(p == target)) for p in pred] if pred.shape[1] else []
+    action_by_judge = [float(np.mean(a == truth)) for a in act] if act.shape[1] else []
     sync = [c["sync"] for c in per_clip if np.isfinite(c["sync"])]
     sink = np.concatenate([c["penetration"] for c in per_clip])
     return {
-        "windows": int(len(pred)),
-        "judged_target": float(np.mean(pred == target)) if len(pred) else float("nan"),
-        "judged_as": {s: float(np.mean(pred == k)) for k, s in enumerate(styles)} if len(pred) else {},
-        "action_kept": float(np.mean(act == truth)) if len(act) else float("nan"),
-        "action_taken_as": {a: float(np.mean(act == k)) for k, a in enumerate(actions)} if len(act) else {},
+        "windows": int(pred.shape[1]),
+        "judged_target": float(np.mean(style_by_judge)) if style_by_judge else float("nan"),
+        "judged_target_judges": style_by_judge,
+        "judged_as": {s: float(np.mean(pred == k)) for k, s in enumerate(styles)} if pred.shape[1] else {},
+        "action_kept": float(np.mean(action_by_judge)) if action_by_judge else float("nan"),
+        "action_kept_judges": action_by_judge,
+        "action_taken_as": {a: float(np.mean(act == k)) for k, a in enumerate(actions)} if act.shape[1] else {},
         "jerk_ratio": {g: g_out[g] / max(g_in[g], 1e-12) for g in g_in},
         "jerk_cm_per_frame3": g_out,
         "slide_cm_per_frame": float(s_out.mean()) if s_out.size else float("nan"),
@@ -207,11 +216,11 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
 def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str] | None = None,
              max_files: int | None = None, hop: int = DEFAULT_HOP, data_dir=None, cache_dir=None,
              seed: int = 0, direction: str = "a2b", log=print, targets: list[str] | None = None,
-             source: str | None = None) -> Path:
+             source: str | None = None, panel: int = PANEL) -> Path:
     """Evaluate ``model`` towards each of ``targets`` (default: the model's own target; a
     multi-style model needs them named). One target: the report in ``out``; several: one
-    folder per target under ``out`` and ``out/summary.md`` beside them. The judges are
-    trained once and shared. ``source``: the style of the held-out clips restyled (default
+    folder per target under ``out`` and ``out/summary.md`` beside them. The judges (a panel
+    of ``panel`` of each kind, seeds ``seed``, ``seed + 1``, ...) are trained once and shared. ``source``: the style of the held-out clips restyled (default
     the model's source; normal for a multi-style model, which takes any)."""
     import torch
 
@@ -244,16 +253,17 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
 
     torch.manual_seed(seed)
     per_style = None if max_files is None else 6 * max_files
-    judges = Judges(styles, actions, seed).fit(training_motions(files, styles, per_style, cache_dir), skeleton, log)
+    judges = Judges(styles, actions, seed, panel).fit(training_motions(files, styles, per_style, cache_dir), skeleton, log)
     held = {s: D.load_motions(D.files_for_style(files, s, "val")[:max_files], cache_dir) for s in styles}
     real = {s: [judge_windows(m.rotations, m.root_positions, skeleton) for m in held[s]] for s in styles}
     # The judges on real held-out windows of every style: how far they can be trusted.
     judge_check = {}
     for k, s in enumerate(styles):
         w = np.concatenate(real[s])
-        judge_check[s] = {"windows": int(len(w)), "style_accuracy": float(np.mean(judges.style.predict(w) == k)),
-                          "action_accuracy": float(np.mean(judges.action.predict(w) == np.concatenate(
-                              [np.full(len(x), actions.index(m.file.action)) for x, m in zip(real[s], held[s])])))}
+        truth = np.concatenate([np.full(len(x), actions.index(m.file.action)) for x, m in zip(real[s], held[s])])
+        judge_check[s] = {"windows": int(len(w)),
+                          "style_accuracy_judges": [float(np.mean(v == k)) for v in judges.style_votes(w)],
+                          "action_accuracy_judges": [float(np.mean(v == truth)) for v in judges.action_votes(w)]}
     shared = dict(source=source, files=files, styles=styles, actions=actions, skeleton=skeleton, judges=judges, held=held,
                   real=real, judge_check=judge_check, per_style=per_style, cache_dir=cache_dir, hop=hop, log=log)
     space = _style_space_plot(out, loaded, judges, real, styles)
@@ -276,10 +286,10 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     real_target = np.concatenate(real[target])
     target_train = training_motions(files, [target], per_style, cache_dir)
     train_windows = np.concatenate([judge_windows(m.rotations, m.root_positions, skeleton) for m in target_train])
-    feats_target = judges.style.embed(real_target)
-    fmd_floor = M.frechet_distance(judges.style.embed(train_windows), feats_target)
-    log(f"judges checked on held-out windows; FMD floor (real {target} train vs held-out) {fmd_floor:.3f} "
-        f"({time.perf_counter() - t0:.0f} s)")
+    feats_target = judges.style_features(real_target)
+    fmd_floors = [M.frechet_distance(f, t) for f, t in zip(judges.style_features(train_windows), feats_target)]
+    log(f"judges checked on held-out windows; FMD floor (real {target} train vs held-out) "
+        f"{', '.join(f'{f:.3f}' for f in fmd_floors)} per judge ({time.perf_counter() - t0:.0f} s)")
 
     # Real target-style motion against real source-style motion of the same action.
     real_jerk = {}
@@ -314,9 +324,9 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                 inp, res, roots, out_roots = inp[skip:], res[skip:], roots[skip:], out_roots[skip:]
                 per_clip.append(_clip_measures(inp, res, roots, out_roots, skeleton))
                 w = judge_windows(res, out_roots, skeleton)
-                preds.append(judges.style.predict(w))
-                acts.append(judges.action.predict(w))
-                feats.append(judges.style.embed(w))
+                preds.append(judges.style_votes(w))
+                acts.append(judges.action_votes(w))
+                feats.append(judges.style_features(w))
                 ds.append(frame_differences(res))
                 masks.append(mask)
                 if setting == "stream":
@@ -327,8 +337,10 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                 summary["per_action"][actions[a]] = _summarise([per_clip[i] for i in sel], [preds[i] for i in sel],
                                                                [acts[i] for i in sel], [a] * len(sel), target_k, styles,
                                                                actions)
-            f = np.concatenate(feats)
-            summary["overall"]["fmd"] = M.frechet_distance(f, feats_target) if len(f) > 1 else float("nan")
+            fmd = [M.frechet_distance(f, t) if len(f) > 1 else float("nan")
+                   for f, t in zip((np.concatenate(per_judge) for per_judge in zip(*feats)), feats_target)]
+            summary["overall"]["fmd_judges"] = fmd
+            summary["overall"]["fmd"] = float(np.mean(fmd))
             summary["overall"]["seam_ratio"] = seam_ratio(ds, masks)
             # The input's own figure on the same grid is not 1 in short clips (the seams
             # fall at the same times in every take): the goal is read relative to it.
@@ -346,7 +358,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
 
     metrics = {"model": str(proposed.path), "source": source, "target": target, "hop": hop,
                "held_out_files": {s: len(held[s]) for s in styles}, "judges": judge_check,
-               "fmd_floor": fmd_floor, "real_target_jerk_ratio": real_jerk, "results": results,
+               "judge_seeds": judges.seeds, "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
+               "real_target_jerk_ratio": real_jerk, "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0}
     plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")

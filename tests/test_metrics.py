@@ -115,3 +115,33 @@ def test_floor_penetration_sees_a_foot_through_the_floor_and_not_one_above_it():
     lifted = still.copy()
     lifted[:, FOOT, 1] += 5.0
     assert M.floor_penetration(still, lifted).max() == 0.0
+
+
+def test_a_judge_panel_with_one_fooled_judge_fails_the_style_goal():
+    """The known-bad case of the judge panel: two judges call every window the target, a
+    third only a quarter of them. The mean reads 75 %, the goal is read on the worst
+    judge (25 %); the same holds for the action judges and, the other way up, for FMD."""
+    from stylecast.models.eval import _summarise
+    from stylecast.models.report import goal_values, goals_met
+
+    q, roots = smooth_motion()
+    clip = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    target, action = 2, 1
+    style_votes = np.array([[target] * 8, [target] * 8, [target, target, 0, 0, 0, 0, 0, 0]])
+    action_votes = np.array([[action] * 8, [action] * 8, [action] * 8])
+    overall = _summarise([clip], [style_votes], [action_votes], [action], target, ["a", "b", "c"],
+                         ["x", "y", "z"])
+    assert overall["judged_target_judges"] == [1.0, 1.0, 0.25]
+    assert overall["judged_target"] == pytest.approx(0.75)
+    assert overall["judged_as"]["c"] == pytest.approx(0.75) and overall["judged_as"]["a"] == pytest.approx(0.25)
+    assert overall["action_kept"] == 1.0
+    overall.update(seam_ratio_relative=1.0, fmd_judges=[2.0, 2.0, 9.0])
+    values = goal_values(overall, [1.0, 1.0, 3.0])
+    assert values["judged_target"] == 0.25 and values["fmd_ratio"] == pytest.approx(3.0)
+    met = goals_met(overall, [1.0, 1.0, 3.0])
+    assert not met["judged_target"] and not met["fmd_ratio"] and met["action_kept"]
+    # With the fooled judge replaced by one that agrees, the same windows pass.
+    style_votes[2] = target
+    overall = _summarise([clip], [style_votes], [action_votes], [action], target, ["a", "b", "c"], ["x", "y", "z"])
+    overall.update(seam_ratio_relative=1.0, fmd_judges=[2.0, 2.0, 3.0])
+    assert goals_met(overall, [1.0, 1.0, 3.0])["judged_target"]

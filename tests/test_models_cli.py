@@ -102,7 +102,7 @@ def test_restyle_refuses_a_corrupt_checkpoint(tmp_path, capsys):
 def test_eval_writes_a_report(tiny_run, tmp_path):
     model = str(tiny_run / "model.safetensors")
     assert main(["eval", "--model", model, "--variant", f"again={model}", "--out", str(tmp_path), "--max-files", "2",
-                 "--threads", "1"]) == 0
+                 "--threads", "1", "--judges", "2"]) == 0
     report = (tmp_path / "report.md").read_text()
     for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
                     "Per action, stream", "What the action judge took each action's windows for",
@@ -120,6 +120,13 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     assert live_input["timing_sync"] == pytest.approx(1.0) and live_input["judged_target"] < 0.5
     # a one-epoch model is nearly the identity: far from the target on FMD, unlike real target windows
     assert results["proposed"]["stream"]["overall"]["fmd"] > metrics["fmd_floor"]
+    # two judges of each kind, seeds 0 and 1, each with its own figures and FMD space
+    assert metrics["judge_seeds"] == [0, 1] and len(metrics["fmd_floor_judges"]) == 2
+    proposed = results["proposed"]["stream"]["overall"]
+    for key in ("judged_target", "action_kept", "fmd"):
+        assert len(proposed[f"{key}_judges"]) == 2
+        assert proposed[key] == pytest.approx(np.mean(proposed[f"{key}_judges"]))
+    assert all(len(j["style_accuracy_judges"]) == 2 for j in metrics["judges"].values())
     assert (tmp_path / "fig_hand_foot.png").exists()
 
 
