@@ -122,10 +122,10 @@ class ContactSettings:
 
 
 # Where planted feet go (``--feet``). "input": on the input's own ankles, the knees bent in
-# the input's plane; the pair model reads most as exhausted so (90.9 % of held-out windows
-# against 81.6 % with "stance"). "stance": beside them, where the restyled legs stand,
-# turned and bent as restyled; the multi-style model reads most as its targets so (84.2 %
-# on average over six against 54.6 %). Each model kind names its own (``feet``), which
+# the input's plane; the pair model reads most as exhausted so (83.0 % of held-out windows
+# on the evaluation's judge panel against 62.8 % with "stance"). "stance": beside them,
+# where the restyled legs stand, turned and bent as restyled; the multi-style model reads
+# most as its targets so (80.1 % on average over six against 55.7 %). Each model kind names its own (``feet``), which
 # "auto", the default, takes (figures in models/checkpoints/MODEL_CARD.md).
 FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=15.0)}
 AUTO_FEET = "auto"  # the model's own choice (its ``feet`` attribute), else "input"
