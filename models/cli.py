@@ -14,6 +14,13 @@ def _positive_int(s: str) -> int:
     return v
 
 
+def _count(s: str) -> int:
+    v = int(s)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be zero or a positive integer, got {s}")
+    return v
+
+
 def _unit(s: str) -> float:
     v = float(s)
     if not 0.0 <= v <= 1.0:
@@ -22,7 +29,7 @@ def _unit(s: str) -> float:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .judges import PANEL  # no torch at import time
+    from .judges import DYNAMICS_PANEL, PANEL  # no torch at import time
 
     p = sub.add_parser("train", help="train a CycleGAN restyler between two styles of the Bandai dataset-2")
     p.add_argument("--style-a", default="normal", help="style A (default normal)")
@@ -114,6 +121,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the first judge of each kind (the others: seed+1, ...)")
     p.add_argument("--judges", type=_positive_int, default=PANEL,
                    help=f"judges of each kind in the panel (default {PANEL}); the goals are read on the worst")
+    p.add_argument("--dynamics-judges", type=_count, default=DYNAMICS_PANEL,
+                   help=f"style judges that see only velocities, a stricter style goal (default {DYNAMICS_PANEL}; "
+                        "0: none)")
     p.set_defaults(func=run_eval)
 
 
@@ -249,6 +259,6 @@ def run_eval(args) -> int:
     _threads(args.threads)
     path = evaluate(args.model, args.out, variants, max_files=args.max_files, hop=args.hop or DEFAULT_HOP,
                     data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction,
-                    targets=args.target, source=args.source, panel=args.judges)
+                    targets=args.target, source=args.source, panel=args.judges, dynamics=args.dynamics_judges)
     print(f"wrote {path}")
     return 0

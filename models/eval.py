@@ -26,6 +26,8 @@ overall and per action:
   of the target style against the same held-out ones;
   (each of these three by every judge of a panel trained from different seeds: the panel's
   mean is shown, and the goals are read on its worst judge; ``judges.py`` says why)
+* dynamics: share of windows judged as the target by style classifiers that see only
+  velocities (a stricter goal than the issue's: a restyle of posture alone fails it);
 * jerk ratio per joint group (output / input), beside the same ratio of real target-style
   clips to real source-style clips of each action;
 * planted-foot slide: horizontal foot speed where the input's foot is planted (output /
@@ -52,7 +54,7 @@ from . import data as D
 from . import metrics as M
 from . import representation as R
 from .baselines import PostureRestyler
-from .judges import PANEL, Judges, judge_windows, training_motions
+from .judges import DYNAMICS_PANEL, PANEL, Judges, judge_windows, training_motions
 from .restyle import padding, restyle_rotations
 from .restyler import Restyler
 
@@ -175,7 +177,8 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
 
 
 def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_action: list[np.ndarray],
-               actions_true: list[int], target: int, styles: list[str], actions: list[str]) -> dict:
+               actions_true: list[int], target: int, styles: list[str], actions: list[str],
+               windows_dynamics: list[np.ndarray] | None = None) -> dict:
     jin = np.concatenate([c["jerk_in"] for c in per_clip])
     jout = np.concatenate([c["jerk_out"] for c in per_clip])
     g_in, g_out = M.group_means(jin), M.group_means(jout)
@@ -189,6 +192,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         if windows_pred else np.zeros(0, int)
     style_by_judge = [float(np.mean(p == target)) for p in pred] if pred.shape[1] else []
     action_by_judge = [float(np.mean(a == truth)) for a in act] if act.shape[1] else []
+    dyn = np.concatenate(windows_dynamics, axis=1) if windows_dynamics else np.zeros((0, 0), int)
+    dynamics_by_judge = [float(np.mean(d == target)) for d in dyn] if dyn.shape[1] else []
     sync = [c["sync"] for c in per_clip if np.isfinite(c["sync"])]
     sink = np.concatenate([c["penetration"] for c in per_clip])
     return {
@@ -198,6 +203,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "judged_as": {s: float(np.mean(pred == k)) for k, s in enumerate(styles)} if pred.shape[1] else {},
         "action_kept": float(np.mean(action_by_judge)) if action_by_judge else float("nan"),
         "action_kept_judges": action_by_judge,
+        "judged_target_dynamics": float(np.mean(dynamics_by_judge)) if dynamics_by_judge else float("nan"),
+        "judged_target_dynamics_judges": dynamics_by_judge,
         "action_taken_as": {a: float(np.mean(act == k)) for k, a in enumerate(actions)} if act.shape[1] else {},
         "jerk_ratio": {g: g_out[g] / max(g_in[g], 1e-12) for g in g_in},
         "jerk_cm_per_frame3": g_out,
@@ -216,11 +223,13 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
 def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str] | None = None,
              max_files: int | None = None, hop: int = DEFAULT_HOP, data_dir=None, cache_dir=None,
              seed: int = 0, direction: str = "a2b", log=print, targets: list[str] | None = None,
-             source: str | None = None, panel: int = PANEL) -> Path:
+             source: str | None = None, panel: int = PANEL, dynamics: int = DYNAMICS_PANEL) -> Path:
     """Evaluate ``model`` towards each of ``targets`` (default: the model's own target; a
     multi-style model needs them named). One target: the report in ``out``; several: one
     folder per target under ``out`` and ``out/summary.md`` beside them. The judges (a panel
-    of ``panel`` of each kind, seeds ``seed``, ``seed + 1``, ...) are trained once and shared. ``source``: the style of the held-out clips restyled (default
+    of ``panel`` of each kind, seeds ``seed``, ``seed + 1``, ..., and ``dynamics`` style judges
+    that see only velocities) are trained once and shared. ``source``: the style of the
+    held-out clips restyled (default
     the model's source; normal for a multi-style model, which takes any)."""
     import torch
 
@@ -253,7 +262,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
 
     torch.manual_seed(seed)
     per_style = None if max_files is None else 6 * max_files
-    judges = Judges(styles, actions, seed, panel).fit(training_motions(files, styles, per_style, cache_dir), skeleton, log)
+    judges = Judges(styles, actions, seed, panel, dynamics).fit(training_motions(files, styles, per_style, cache_dir), skeleton, log)
     held = {s: D.load_motions(D.files_for_style(files, s, "val")[:max_files], cache_dir) for s in styles}
     real = {s: [judge_windows(m.rotations, m.root_positions, skeleton) for m in held[s]] for s in styles}
     # The judges on real held-out windows of every style: how far they can be trusted.
@@ -263,7 +272,8 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
         truth = np.concatenate([np.full(len(x), actions.index(m.file.action)) for x, m in zip(real[s], held[s])])
         judge_check[s] = {"windows": int(len(w)),
                           "style_accuracy_judges": [float(np.mean(v == k)) for v in judges.style_votes(w)],
-                          "action_accuracy_judges": [float(np.mean(v == truth)) for v in judges.action_votes(w)]}
+                          "action_accuracy_judges": [float(np.mean(v == truth)) for v in judges.action_votes(w)],
+                          "dynamics_accuracy_judges": [float(np.mean(v == k)) for v in judges.dynamics_votes(w)]}
     shared = dict(source=source, files=files, styles=styles, actions=actions, skeleton=skeleton, judges=judges, held=held,
                   real=real, judge_check=judge_check, per_style=per_style, cache_dir=cache_dir, hop=hop, log=log)
     space = _style_space_plot(out, loaded, judges, real, styles)
@@ -307,7 +317,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     outputs_for_plot: dict = {}
     for variant in build_variants(proposed, variants, posture, log, source):
         for setting, live, skip in SETTINGS:
-            per_clip, preds, acts, feats, ds, masks = [], [], [], [], [], []
+            per_clip, preds, acts, dyns, feats, ds, masks = [], [], [], [], [], [], []
             for m in clips:
                 inp = m.rotations.astype(np.float64)
                 roots = m.root_positions.astype(np.float64)
@@ -326,17 +336,19 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                 w = judge_windows(res, out_roots, skeleton)
                 preds.append(judges.style_votes(w))
                 acts.append(judges.action_votes(w))
+                dyns.append(judges.dynamics_votes(w))
                 feats.append(judges.style_features(w))
                 ds.append(frame_differences(res))
                 masks.append(mask)
                 if setting == "stream":
                     outputs_for_plot.setdefault(variant.name, []).append((res, out_roots))
-            summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles, actions), "per_action": {}}
+            summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles, actions, dyns),
+                       "per_action": {}}
             for a in sorted(set(act_idx)):
                 sel = [i for i, x in enumerate(act_idx) if x == a]
                 summary["per_action"][actions[a]] = _summarise([per_clip[i] for i in sel], [preds[i] for i in sel],
                                                                [acts[i] for i in sel], [a] * len(sel), target_k, styles,
-                                                               actions)
+                                                               actions, [dyns[i] for i in sel])
             fmd = [M.frechet_distance(f, t) if len(f) > 1 else float("nan")
                    for f, t in zip((np.concatenate(per_judge) for per_judge in zip(*feats)), feats_target)]
             summary["overall"]["fmd_judges"] = fmd
@@ -358,7 +370,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
 
     metrics = {"model": str(proposed.path), "source": source, "target": target, "hop": hop,
                "held_out_files": {s: len(held[s]) for s in styles}, "judges": judge_check,
-               "judge_seeds": judges.seeds, "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
+               "judge_seeds": judges.seeds, "dynamics_judge_seeds": judges.dynamics_seeds, "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
                "real_target_jerk_ratio": real_jerk, "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0}
     plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)

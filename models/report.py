@@ -17,7 +17,12 @@ GOALS = (
     ("timing sync", "timing_sync", lambda v, m: v >= 0.8, ">= 0.8"),
     ("seam ratio / input's on the same grid", "seam_ratio_relative", lambda v, m: v <= 1.02, "<= 1.02"),
     ("FMD / real-vs-real floor, worst judge", "fmd_ratio", lambda v, m: v <= 2.0, "<= 2"),
+    # Stricter than the issue (judges.py, DYNAMICS_PANEL): the style read from velocities
+    # alone, so a restyle of the posture only cannot pass. Absent when no dynamics judge ran.
+    ("judged target style, worst dynamics judge (velocities only; stricter than the issue)",
+     "judged_target_dynamics", lambda v, m: v >= 0.90, ">= 90 %"),
 )
+PERCENT_GOALS = ("judged_target", "action_kept", "judged_target_dynamics")
 
 
 def _pct(v) -> str:
@@ -39,12 +44,16 @@ def fmd_ratios(overall: dict, floors: list[float]) -> list[float]:
 
 
 def goal_values(overall: dict, floors: list[float]) -> dict:
-    """The figures the goals are read on: for the judges' measures, the worst judge's."""
-    return {"judged_target": min(_judges(overall, "judged_target")),
-            "action_kept": min(_judges(overall, "action_kept")),
-            "jerk_all": overall["jerk_ratio"]["all"], "slide_ratio": overall["slide_ratio"],
-            "timing_sync": overall["timing_sync"], "seam_ratio_relative": overall["seam_ratio_relative"],
-            "fmd_ratio": max(fmd_ratios(overall, floors))}
+    """The figures the goals are read on: for the judges' measures, the worst judge's (the
+    dynamics goal only where dynamics judges ran)."""
+    values = {"judged_target": min(_judges(overall, "judged_target")),
+              "action_kept": min(_judges(overall, "action_kept")),
+              "jerk_all": overall["jerk_ratio"]["all"], "slide_ratio": overall["slide_ratio"],
+              "timing_sync": overall["timing_sync"], "seam_ratio_relative": overall["seam_ratio_relative"],
+              "fmd_ratio": max(fmd_ratios(overall, floors))}
+    if overall.get("judged_target_dynamics_judges"):
+        values["judged_target_dynamics"] = min(overall["judged_target_dynamics_judges"])
+    return values
 
 
 def fmd_floors(m: dict) -> list[float]:
@@ -58,9 +67,15 @@ def _range(values: list[float], fmt) -> str:
     return f"{fmt(float(np.mean(values)))} ({fmt(min(values))}–{fmt(max(values))})"
 
 
+def _dynamics(o: dict) -> str:
+    """The dynamics judges' figure, or n/a where none ran."""
+    return _range(o["judged_target_dynamics_judges"], _pct) if o.get("judged_target_dynamics_judges") else "n/a"
+
+
 def goals_met(overall: dict, floors: list[float]) -> dict[str, bool]:
     values = goal_values(overall, floors)
-    return {key: bool(np.isfinite(values[key]) and test(values[key], overall)) for _, key, test, _ in GOALS}
+    return {key: bool(np.isfinite(values[key]) and test(values[key], overall))
+            for _, key, test, _ in GOALS if key in values}
 
 
 def write_report(path: Path, m: dict, plots: list[str]) -> Path:
@@ -78,12 +93,17 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
              "world joint positions and velocities, in metres, relative to the hips at each window's centre and "
              "facing +Z), one per seed (" + ", ".join(map(str, m.get("judge_seeds", [0]))) + "), trained on real "
              "training-split windows of all styles. Figures read by the judges are the panel's mean with the worst "
-             "and best judge in brackets; the goals are read on the worst judge. Accuracy on real held-out "
-             "windows:", "",
-             "| style | windows | judged as its style | action recognised |", "|---|---|---|---|"]
+             "and best judge in brackets; the goals are read on the worst judge. "
+             f"{len(m.get('dynamics_judge_seeds', []))} dynamics judges (7-style classifiers of the same kind that "
+             "see only the velocities) give a stricter style figure: a restyle of the posture alone cannot pass "
+             "them. Accuracy on real held-out windows:", "",
+             "| style | windows | judged as its style | action recognised | judged as its style, dynamics |",
+             "|---|---|---|---|---|"]
     for s, j in m["judges"].items():
+        dynamics = j.get("dynamics_accuracy_judges")
         lines.append(f"| {s} | {j['windows']} | {_range(_judges(j, 'style_accuracy'), _pct)} | "
-                     f"{_range(_judges(j, 'action_accuracy'), _pct)} |")
+                     f"{_range(_judges(j, 'action_accuracy'), _pct)} | "
+                     f"{_range(dynamics, _pct) if dynamics else 'n/a'} |")
     floors = fmd_floors(m)
     lines += ["", f"FMD floor (real {tgt} training windows vs real {tgt} held-out windows, each style judge's "
               f"pooled features): **{_range(floors, _num)}**.", ""]
@@ -93,13 +113,15 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
         values = goal_values(prop, floors)
         lines += ["", f"## Goals, model under test, {setting}", "", "| measure | value | goal | met |", "|---|---|---|---|"]
         for name, key, _, shown in GOALS:
+            if key not in values:
+                continue
             v = values[key]
-            lines.append(f"| {name} | {_pct(v) if key in ('judged_target', 'action_kept') else _num(v)} | {shown} | "
+            lines.append(f"| {name} | {_pct(v) if key in PERCENT_GOALS else _num(v)} | {shown} | "
                          f"{'yes' if met[key] else '**no**'} |")
         lines += ["", f"## All variants, {setting} (all actions)", "",
                   "| variant | judged target | action kept | FMD | jerk all | jerk hands | jerk feet | slide cm/frame "
-                  "(ratio) | feet below floor mean / p99 cm | sync | seam (/ input's) |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "(ratio) | feet below floor mean / p99 cm | sync | seam (/ input's) | judged target, dynamics |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for name, r in res.items():
             o = r[setting]["overall"]
             jr = o["jerk_ratio"]
@@ -109,7 +131,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                          f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
                          f"{_num(o['floor_penetration_cm'], 2)} / {_num(o['floor_penetration_p99_cm'], 1)} | "
                          f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
-                         f"({_num(o['seam_ratio_relative'], 3)}) |")
+                         f"({_num(o['seam_ratio_relative'], 3)}) | {_dynamics(o)} |")
     lines += ["", "Variants: " + "; ".join(f"`{k}`: {v['note']}" for k, v in res.items()) + ".", "",
               "## What the windows were taken for (stream)", "",
               "| variant | " + " | ".join(next(iter(res.values()))["stream"]["overall"]["judged_as"]) + " |",
@@ -180,15 +202,17 @@ def write_summary(path: Path, model: str, per_target: dict, plots: list[str], se
              "correction low-pass, foot lock), `stream` setting. The bar (issue 11, for every target): judged as "
              "the target >= 90 %, action kept >= 93 %, jerk ratio <= 1.10, planted-foot slide <= 1.5x the input's; "
              "what the judges read is read on the panel's worst judge (its mean in brackets).",
+             "The dynamics column (worst dynamics judge, velocities only) is stricter than the bar.",
              "", "| target | model | judged as target | action kept | jerk ratio | slide ratio | timing sync | "
-             "seam / input's | FMD / floor | bar met |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "seam / input's | FMD / floor | judged as target, dynamics | bar met |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in summary_rows(per_target, ("proposed", *others)):
         short = [k for k in BAR if not r["met"][k]]
         lines.append(f"| {r['target']} | {r['variant']} | {_pct(r['judged_target'])} ({_pct(r['judged_target_mean'])}) | "
                      f"{_pct(r['action_kept'])} ({_pct(r['action_kept_mean'])}) | "
                      f"{_num(r['jerk_all'], 2)} | {_num(r['slide_ratio'], 2)} | {_num(r['timing_sync'], 3)} | "
                      f"{_num(r['seam_ratio_relative'], 3)} | {_num(r['fmd_ratio'], 1)} | "
-                     f"{'yes' if not short else 'no: ' + ', '.join(short)} |")
+                     f"{_pct(r.get('judged_target_dynamics'))} | {'yes' if not short else 'no: ' + ', '.join(short)} |")
     lines += ["", "Input (nothing done) on the same clips, judged as each target: "
               + ", ".join(f"{t} {_pct(m['results']['input']['stream']['overall']['judged_target'])}"
                           for t, m in per_target.items()) + ".", ""]

@@ -145,3 +145,44 @@ def test_a_judge_panel_with_one_fooled_judge_fails_the_style_goal():
     overall = _summarise([clip], [style_votes], [action_votes], [action], target, ["a", "b", "c"], ["x", "y", "z"])
     overall.update(seam_ratio_relative=1.0, fmd_judges=[2.0, 2.0, 3.0])
     assert goals_met(overall, [1.0, 1.0, 3.0])["judged_target"]
+    assert "judged_target_dynamics" not in goals_met(overall, [1.0, 1.0, 3.0])  # no dynamics judge ran
+
+
+def test_a_posture_only_restyle_passes_the_full_judges_and_fails_the_dynamics_goal():
+    """The dynamics judges' known-bad case: the full judges call every window the target
+    (a posture shift reads so to them), the velocity-only judges see the input's motion
+    and call half of the windows the source style, one of them all."""
+    from stylecast.models.eval import _summarise
+    from stylecast.models.report import goals_met
+
+    q, roots = smooth_motion()
+    clip = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    target, source, action = 2, 0, 1
+    full = np.full((3, 8), target)
+    dynamics = np.array([[target] * 4 + [source] * 4, [source] * 8])
+    overall = _summarise([clip], [full], [np.full((3, 8), action)], [action], target, ["a", "b", "c"],
+                         ["x", "y", "z"], [dynamics])
+    assert overall["judged_target"] == 1.0 and overall["judged_target_dynamics_judges"] == [0.5, 0.0]
+    overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0, 1.0, 1.0])
+    met = goals_met(overall, [1.0, 1.0, 1.0])
+    assert met["judged_target"] and not met["judged_target_dynamics"]
+    # Dynamics judges that see the target's motion let it pass.
+    overall = _summarise([clip], [full], [np.full((3, 8), action)], [action], target, ["a", "b", "c"],
+                         ["x", "y", "z"], [np.full((2, 8), target)])
+    overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0, 1.0, 1.0])
+    assert goals_met(overall, [1.0, 1.0, 1.0])["judged_target_dynamics"]
+
+
+def test_a_dynamics_judge_cannot_see_a_posture_shift_and_a_full_judge_can():
+    """What makes the dynamics judge stricter: a constant pose offset (a posture-only
+    restyle) leaves its probabilities unchanged, while the full judge's move."""
+    from stylecast.models.classifier import WordClassifier
+
+    rng = np.random.default_rng(0)
+    windows = rng.normal(size=(16, 60, 4, 3)).cumsum(axis=1).astype(np.float32) * 0.01
+    labels = np.arange(16) % 2
+    shifted = windows + np.float32(0.3)
+    dynamics = WordClassifier(["a", "b"], 12, seed=0, velocity_only=True).fit(windows, labels, epochs=2)
+    full = WordClassifier(["a", "b"], 12, seed=0).fit(windows, labels, epochs=2)
+    assert np.allclose(dynamics.probabilities(shifted), dynamics.probabilities(windows), atol=1e-4)
+    assert not np.allclose(full.probabilities(shifted), full.probabilities(windows), atol=1e-3)

@@ -102,7 +102,7 @@ def test_restyle_refuses_a_corrupt_checkpoint(tmp_path, capsys):
 def test_eval_writes_a_report(tiny_run, tmp_path):
     model = str(tiny_run / "model.safetensors")
     assert main(["eval", "--model", model, "--variant", f"again={model}", "--out", str(tmp_path), "--max-files", "2",
-                 "--threads", "1", "--judges", "2"]) == 0
+                 "--threads", "1", "--judges", "2", "--dynamics-judges", "1"]) == 0
     report = (tmp_path / "report.md").read_text()
     for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
                     "Per action, stream", "What the action judge took each action's windows for",
@@ -127,6 +127,10 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
         assert len(proposed[f"{key}_judges"]) == 2
         assert proposed[key] == pytest.approx(np.mean(proposed[f"{key}_judges"]))
     assert all(len(j["style_accuracy_judges"]) == 2 for j in metrics["judges"].values())
+    # one dynamics judge: its own style figure, a goal row and a column of the report
+    assert metrics["dynamics_judge_seeds"] == [0] and len(proposed["judged_target_dynamics_judges"]) == 1
+    assert all(len(j["dynamics_accuracy_judges"]) == 1 for j in metrics["judges"].values())
+    assert "worst dynamics judge" in report and "judged target, dynamics" in report
     assert (tmp_path / "fig_hand_foot.png").exists()
 
 
