@@ -122,8 +122,9 @@ class ContactSettings:
 
 
 # Where planted feet go (``--feet``). "input": on the input's own ankles, the knees bent in
-# the input's plane; the pair model reads most as exhausted so (83.0 % of held-out windows
-# on the evaluation's judge panel against 62.8 % with "stance"). "stance": beside them,
+# the input's plane; the pair models keep it (the previous default read 83.0 % exhausted on
+# the evaluation's judge panel against 62.8 % with "stance"; today's reads 74.9 % against
+# 77.3 %, but stance is not shipped for it yet: see the model card). "stance": beside them,
 # where the restyled legs stand, turned and bent as restyled; the multi-style model reads
 # most as its targets so (80.1 % on average over six against 55.7 %). Each model kind names its own (``feet``), which
 # "auto", the default, takes (figures in models/checkpoints/MODEL_CARD.md).
