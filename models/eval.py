@@ -231,8 +231,8 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
     folder per target under ``out`` and ``out/summary.md`` beside them. The judges (a panel
     of ``panel`` of each kind, seeds ``seed``, ``seed + 1``, ..., and ``dynamics`` style judges
     that see only velocities) are trained once and shared. ``source``: the style of the
-    held-out clips restyled (default
-    the model's source; normal for a multi-style model, which takes any)."""
+    held-out clips restyled (default the model's source; normal for a multi-style model,
+    which takes any)."""
     import torch
 
     from .styles import STYLES, check_style

@@ -53,8 +53,8 @@ PANEL = 3
 # velocities (``WordClassifier(velocity_only=True)``, seed 004's view of style as motion
 # dynamics). They are right on 96-100 % of real held-out windows of every style, yet read a
 # restyle that only moves the posture as what it is: the posture-only baseline, 45 %
-# exhausted to the full judges, is 1-4 % exhausted to them, and the shipped default 26-38 %
-# (87 % to the full judge of the same seed). Their figure is a stricter goal beside the
+# exhausted to the full judges, is 1-4 % exhausted to them, and the previous default (v2)
+# 26-38 % (87 % to the full judge of the same seed). Their figure is a stricter goal beside the
 # issue's.
 DYNAMICS_PANEL = 2
 
