@@ -372,7 +372,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
 
     metrics = {"model": str(proposed.path), "source": source, "target": target, "hop": hop,
                "held_out_files": {s: len(held[s]) for s in styles}, "judges": judge_check,
-               "judge_seeds": judges.seeds, "dynamics_judge_seeds": judges.dynamics_seeds, "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
+               "judge_seeds": judges.seeds, "dynamics_judge_seeds": judges.dynamics_seeds,
+               "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
                "real_target_jerk_ratio": real_jerk, "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0}
     plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)

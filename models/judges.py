@@ -105,19 +105,23 @@ class Judges:
 
     def style_votes(self, windows: np.ndarray) -> np.ndarray:
         """(judges, N): each style judge's choice for each window."""
-        return np.stack([j.predict(windows) for j in self.style_panel])
+        return _votes(self.style_panel, windows)
 
     def action_votes(self, windows: np.ndarray) -> np.ndarray:
         """(judges, N): each action judge's choice for each window."""
-        return np.stack([j.predict(windows) for j in self.action_panel])
+        return _votes(self.action_panel, windows)
 
     def dynamics_votes(self, windows: np.ndarray) -> np.ndarray:
-        """(dynamics judges, N): each dynamics judge's style for each window."""
-        return np.array([j.predict(windows) for j in self.dynamics_panel], dtype=int).reshape(-1, len(windows))
+        """(dynamics judges, N): each dynamics judge's style for each window (none: (0, N))."""
+        return _votes(self.dynamics_panel, windows)
 
     def style_features(self, windows: np.ndarray) -> list[np.ndarray]:
         """Each style judge's pooled features of the windows (the FMD's spaces)."""
         return [j.embed(windows) for j in self.style_panel]
+
+
+def _votes(panel: list[WordClassifier], windows: np.ndarray) -> np.ndarray:
+    return np.array([j.predict(windows) for j in panel], dtype=int).reshape(len(panel), len(windows))
 
 
 def training_motions(files: list, styles: list[str], per_style: int | None, cache_dir=None) -> list:

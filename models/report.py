@@ -22,7 +22,6 @@ GOALS = (
     ("judged target style, worst dynamics judge (velocities only; stricter than the issue)",
      "judged_target_dynamics", lambda v, m: v >= 0.90, ">= 90 %"),
 )
-PERCENT_GOALS = ("judged_target", "action_kept", "judged_target_dynamics")
 
 
 def _pct(v) -> str:
@@ -61,15 +60,13 @@ def fmd_floors(m: dict) -> list[float]:
 
 
 def _range(values: list[float], fmt) -> str:
-    """``mean (worst-best)`` of a panel's figures, or the one figure of a single judge."""
+    """``mean (worst-best)`` of a panel's figures, the one figure of a single judge, or n/a
+    where no judge of that kind ran."""
+    if not values:
+        return "n/a"
     if len(values) == 1:
         return fmt(values[0])
     return f"{fmt(float(np.mean(values)))} ({fmt(min(values))}–{fmt(max(values))})"
-
-
-def _dynamics(o: dict) -> str:
-    """The dynamics judges' figure, or n/a where none ran."""
-    return _range(o["judged_target_dynamics_judges"], _pct) if o.get("judged_target_dynamics_judges") else "n/a"
 
 
 def goals_met(overall: dict, floors: list[float]) -> dict[str, bool]:
@@ -100,10 +97,9 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
              "| style | windows | judged as its style | action recognised | judged as its style, dynamics |",
              "|---|---|---|---|---|"]
     for s, j in m["judges"].items():
-        dynamics = j.get("dynamics_accuracy_judges")
         lines.append(f"| {s} | {j['windows']} | {_range(_judges(j, 'style_accuracy'), _pct)} | "
                      f"{_range(_judges(j, 'action_accuracy'), _pct)} | "
-                     f"{_range(dynamics, _pct) if dynamics else 'n/a'} |")
+                     f"{_range(j.get('dynamics_accuracy_judges', []), _pct)} |")
     floors = fmd_floors(m)
     lines += ["", f"FMD floor (real {tgt} training windows vs real {tgt} held-out windows, each style judge's "
               f"pooled features): **{_range(floors, _num)}**.", ""]
@@ -116,7 +112,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
             if key not in values:
                 continue
             v = values[key]
-            lines.append(f"| {name} | {_pct(v) if key in PERCENT_GOALS else _num(v)} | {shown} | "
+            lines.append(f"| {name} | {_pct(v) if shown.endswith('%') else _num(v)} | {shown} | "
                          f"{'yes' if met[key] else '**no**'} |")
         lines += ["", f"## All variants, {setting} (all actions)", "",
                   "| variant | judged target | action kept | FMD | jerk all | jerk hands | jerk feet | slide cm/frame "
@@ -131,7 +127,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                          f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
                          f"{_num(o['floor_penetration_cm'], 2)} / {_num(o['floor_penetration_p99_cm'], 1)} | "
                          f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
-                         f"({_num(o['seam_ratio_relative'], 3)}) | {_dynamics(o)} |")
+                         f"({_num(o['seam_ratio_relative'], 3)}) | {_range(o.get('judged_target_dynamics_judges', []), _pct)} |")
     lines += ["", "Variants: " + "; ".join(f"`{k}`: {v['note']}" for k, v in res.items()) + ".", "",
               "## What the windows were taken for (stream)", "",
               "| variant | " + " | ".join(next(iter(res.values()))["stream"]["overall"]["judged_as"]) + " |",
@@ -185,8 +181,8 @@ def summary_rows(per_target: dict, variants: tuple[str, ...] = ("proposed",)) ->
                 continue
             o = m["results"][name]["stream"]["overall"]
             floors = fmd_floors(m)
-            rows.append({"target": target, "variant": name, "judged_target_mean": o["judged_target"], "action_kept_mean": o["action_kept"],
-                         **goal_values(o, floors), "met": goals_met(o, floors)})
+            rows.append({"target": target, "variant": name, "judged_target_mean": o["judged_target"],
+                         "action_kept_mean": o["action_kept"], **goal_values(o, floors), "met": goals_met(o, floors)})
     return rows
 
 
