@@ -74,7 +74,7 @@ def main() -> int:
     import torch
 
     torch.set_num_threads(1)
-    from stylecast.models.networks import count_parameters, to_channels
+    from stylecast.models.networks import count_parameters, to_channels, training_forms
     from stylecast.models.restyle import restyle_clip, restyle_rotations
     from stylecast.motion import rotations as rot
 
@@ -88,9 +88,13 @@ def main() -> int:
     x64 = to_channels(torch.from_numpy(feats))
 
     rows = []
+    trainer_layers = training_forms(G)  # the baseline: oneDNN's kernels, whose rounding depends on the batch
+    baseline = "  baseline: training layers (batch-dependent)"
     with torch.no_grad():
         rows.append(("generator forward, 1 word", median_ms(lambda: G(x1), args.repeats), "<= 2 ms"))
+        rows.append((baseline, median_ms(lambda: trainer_layers(x1), args.repeats), ""))
         rows.append(("generator forward, 64 words", median_ms(lambda: G(x64), args.repeats), "<= 40 ms"))
+        rows.append((baseline, median_ms(lambda: trainer_layers(x64), args.repeats), ""))
     rows.append(("restyle_words, 1 word (numpy in/out)",
                  median_ms(lambda: restyler.restyle_words(words[:1]), args.repeats), ""))
     rows.append(("restyle_words, 64 words (numpy in/out)",

@@ -7,6 +7,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from .networks import INFERENCE_FORMS
+
 
 class StyleCodes(nn.Module):
     """The code table (S, code_dim); a mix (B, S) of weights -> codes (B, code_dim)."""
@@ -17,6 +19,17 @@ class StyleCodes(nn.Module):
 
     def forward(self, weights: torch.Tensor) -> torch.Tensor:
         return weights.to(self.table.dtype) @ self.table
+
+
+class RowStyleCodes(StyleCodes):
+    """``StyleCodes`` for inference: a mix's codes as a product and a sum, so one word's
+    code has the same bits alone as in a batch (``networks.INFERENCE_FORMS``)."""
+
+    def forward(self, weights: torch.Tensor) -> torch.Tensor:
+        return (weights.to(self.table.dtype).unsqueeze(-1) * self.table).sum(-2)
+
+
+INFERENCE_FORMS[StyleCodes] = RowStyleCodes
 
 
 class AdaIN(nn.Module):

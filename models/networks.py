@@ -33,10 +33,12 @@ Sizes are chosen for the live budget: one word <= 2 ms, 64 words <= 40 ms on one
 
 from __future__ import annotations
 
+import copy
 from dataclasses import asdict, dataclass
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 
@@ -214,6 +216,69 @@ class Generator(CorrectionGenerator):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         skip, y = self.encode(x)
         return self.correct(x, skip, self.blocks(y))
+
+
+# Inference forms of layers whose CPU kernels round a word's result differently with what
+# else shares its batch and with the thread count: oneDNN's convolution picks its kernel
+# by both, and a product of one row (one word's style code) goes to a matrix-vector kernel
+# that rounds unlike the matrix-matrix one. That rounding (1e-7) differed between the
+# daemon's per-tick batches and ``restyle``'s whole clip, and the foot lock amplifies it
+# at nearly straight knees: ``serve`` and ``restyle --live`` parted by 1.6e-4 degrees,
+# where the issue allows 1e-4. The forms below give every word the same bits in any batch
+# on any thread count (tests/test_restyler.py checks the shipped models); training keeps
+# the fast kernels. ``batch_invariant`` swaps them in; other modules register theirs.
+INFERENCE_FORMS: dict[type, type] = {}
+
+
+class RowConv1d(nn.Conv1d):
+    """A ``Conv1d`` as one matrix product over the rows of all words' frames: MKL's
+    matrix product rounds each row alike for any row count and thread count. Costs ~30 %
+    of the generator's time against oneDNN (``bench/bench_models.py``)."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        (k,), (stride,), (pad,), (dilation,) = self.kernel_size, self.stride, self.padding, self.dilation
+        if self.groups != 1 or dilation != 1:
+            raise ValueError("RowConv1d computes plain convolutions only (groups 1, dilation 1)")
+        if pad:
+            x = F.pad(x, (pad, pad), mode="replicate" if self.padding_mode == "replicate" else "constant")
+        taps = x.unfold(2, k, stride)  # (B, Cin, T', k)
+        b, cin, frames, _ = taps.shape
+        rows = taps.permute(0, 2, 1, 3).reshape(b * frames, cin * k)
+        weight = self.weight.reshape(self.out_channels, cin * k).t()
+        out = rows @ weight if self.bias is None else torch.addmm(self.bias, rows, weight)
+        return out.reshape(b, frames, self.out_channels).transpose(1, 2)
+
+
+class RowLinear(nn.Linear):
+    """A ``Linear`` as a product and a sum over its inputs, never a matrix-vector kernel
+    (the inputs are a style code's 16 numbers: the cost is nothing)."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        out = (x.unsqueeze(-1) * self.weight.t()).sum(-2)
+        return out if self.bias is None else out + self.bias
+
+
+INFERENCE_FORMS.update({nn.Conv1d: RowConv1d, nn.Linear: RowLinear})
+
+
+def batch_invariant(model: nn.Module) -> nn.Module:
+    """``model`` with each layer in ``INFERENCE_FORMS`` computed in its inference form
+    (the same weights; for a live restyler, whose words must not depend on their batch)."""
+    return _swap_forms(model, INFERENCE_FORMS)
+
+
+def training_forms(model: nn.Module) -> nn.Module:
+    """A copy of ``model`` with the layers the trainer uses (a benchmark's baseline, a
+    test's known-bad case)."""
+    return _swap_forms(copy.deepcopy(model), {form: base for base, form in INFERENCE_FORMS.items()})
+
+
+def _swap_forms(model: nn.Module, forms: dict) -> nn.Module:
+    for module in model.modules():
+        form = forms.get(type(module))
+        if form is not None:
+            module.__class__ = form  # the subclass adds no state: the weights stay as they are
+    return model
 
 
 def patch_discriminator(cfg: NetworkConfig, heads: int = 1) -> nn.Sequential:

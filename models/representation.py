@@ -84,6 +84,19 @@ class Representation:
         raise NotImplementedError
 
 
+def _atanh(x):
+    """torch.atanh in training (the shipped weights were trained with it and retrain bit
+    for bit); for inference the same function through log1p, because torch.atanh rounds
+    an element differently with the size of the tensor it is in (a word alone against a
+    word in a batch), while log1p does not: a live restyler's words must not depend on
+    their batch (``networks.RowConv1d``)."""
+    import torch
+
+    if torch.is_grad_enabled():
+        return torch.atanh(x)
+    return 0.5 * (torch.log1p(x) - torch.log1p(-x))
+
+
 def xzy_to_quat(angles_deg: np.ndarray) -> np.ndarray:
     """Intrinsic XZY Euler angles (..., 3) in degrees -> quaternions (..., 4) xyzw.
 
@@ -142,7 +155,7 @@ class EulerRepresentation(Representation):
         # degree wrap where a jump would be the only way out.
         import torch
 
-        return torch.tanh(torch.atanh(x.clamp(-0.999, 0.999)) + delta)
+        return torch.tanh(_atanh(x.clamp(-0.999, 0.999)) + delta)
 
     def metadata(self) -> dict:
         return {"name": self.name, "channels": self.channels, "euler_order": EULER_ORDER,

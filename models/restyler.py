@@ -38,7 +38,9 @@ class Restyler:
                  path: Path | None = None):
         if direction not in ("a2b", "b2a"):
             raise UserError(f"unknown direction {direction!r}; use a2b or b2a")
-        self.model = model.eval()
+        from .networks import batch_invariant
+
+        self.model = batch_invariant(model.eval())  # its words must not depend on their batch
         self.rep = rep
         self.metadata = metadata
         self.direction = direction

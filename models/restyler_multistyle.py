@@ -30,7 +30,9 @@ class MultiStyleRestyler(Restyler):
     feet = "stance"  # its stances (masculine, feminine, youthful) need it: see the model card
 
     def __init__(self, model, rep, metadata: dict, weights=None, path=None, intensity: float = 1.0):
-        self.model = model.eval()
+        from .networks import batch_invariant
+
+        self.model = batch_invariant(model.eval())  # its words must not depend on their batch
         self.rep = rep
         self.metadata = metadata
         self.path = path
