@@ -68,6 +68,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-style", type=float, default=0.0,
                    help="weight of the loss that makes the restyle read as the target among all seven styles "
                         "(a frozen style classifier's cross-entropy); default 0 = off")
+    p.add_argument("--feet", metavar="input|stance",
+                   help="the foot lock `serve` and `restyle` use with this model under --feet auto, recorded in "
+                        "the checkpoint (default: its kind's own, input for a pair, stance for --styles all)")
     p.add_argument("--out", type=Path, required=True, help="output folder (checkpoints, losses.csv, model)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last epoch")
     p.add_argument("--max-words", type=_positive_int, help="use at most N training words per style (tiny CI runs)")
@@ -141,6 +144,15 @@ def _check_ema(decay: float | None) -> None:
         raise UserError(f"--ema must be 0 (off) or a decay between 0 and 1 such as 0.999, got {decay:g}")
 
 
+def _check_lock(feet: str | None) -> None:
+    """``train --feet``: a lock the checkpoint can name ("auto" is what serving does with it)."""
+    from stylecast.motion.errors import UserError
+    from stylecast.motion.footlock import FEET
+
+    if feet is not None and feet not in FEET:
+        raise UserError(f"--feet {feet!r} is not a foot lock a model can name; use one of {', '.join(FEET)}")
+
+
 def _check_generator(name: str, styles: str) -> None:
     from stylecast.motion.errors import UserError
 
@@ -172,7 +184,7 @@ def run_train_multistyle(args) -> int:
         raise UserError(f"--knots: {exc}") from None
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
                                 max_words=args.max_words, lambda_identity=args.lambda_identity,
-                                lambda_action=args.lambda_action, network=net,
+                                lambda_action=args.lambda_action, network=net, feet=args.feet,
                                 **_given(ema=args.ema, epochs=args.epochs, words_per_epoch=args.words_per_epoch))
     train, val, actions = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
     train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress,
@@ -187,6 +199,7 @@ def run_train(args) -> int:
 
     _threads(args.threads)
     _check_ema(args.ema)
+    _check_lock(args.feet)
     pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
     _check_generator(args.generator, args.styles)
     if args.styles == "all":
@@ -200,7 +213,7 @@ def run_train(args) -> int:
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
                       lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
-                      lambda_style=args.lambda_style, **_given(ema=args.ema))
+                      lambda_style=args.lambda_style, feet=args.feet, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
     if args.style_a == args.style_b:

@@ -21,6 +21,7 @@ import numpy as np
 
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
+from stylecast.motion.footlock import FEET
 from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
 from stylecast.motion.words import WORD_LENGTH  # the one definition of a word's length
 
@@ -32,7 +33,7 @@ MAX_NETWORK_SIZE = 1 << 16  # no width, depth or kernel of a live restyler comes
 
 
 class Restyler:
-    feet = "input"  # the foot lock it reads best with (motion.footlock.FEET; measured in the model card)
+    default_feet = "input"  # the foot lock of a pair model whose checkpoint names none (``feet``)
 
     def __init__(self, model, rep: R.Representation, metadata: dict, direction: str = "a2b",
                  path: Path | None = None):
@@ -79,6 +80,12 @@ class Restyler:
         return cls(model, rep, meta, direction, path)
 
     # -- facts ----------------------------------------------------------------------------
+    @property
+    def feet(self) -> str:
+        """The foot lock ``--feet auto`` takes (motion.footlock.FEET): the one its checkpoint
+        names (``train --feet``, measured in the model card), else its kind's default."""
+        return self.metadata.get("feet") or self.default_feet
+
     @property
     def styles(self) -> dict:
         return dict(self.metadata["styles"])
@@ -221,6 +228,9 @@ def read_model(path: Path):
         raise UserError(f"checkpoint {path} was trained on humanoid rotations of retarget version {version}, "
                         f"this stylecast maps motion with version {RETARGET_VERSION}; retrain the model "
                         f"(`stylecast train`)")
+    if meta.get("feet") is not None and meta["feet"] not in FEET:
+        raise UserError(f"checkpoint {path} names the foot lock {meta['feet']!r}, which this stylecast does not "
+                        f"know ({', '.join(FEET)}); use a matching stylecast or export it again")
     rep_meta = meta["representation"]
     name = rep_meta.get("name") if isinstance(rep_meta, dict) else None
     if name not in R.REPRESENTATIONS:

@@ -27,7 +27,7 @@ KIND = "multistyle"
 @register_kind(KIND)
 class MultiStyleRestyler(Restyler):
     direction = ""  # no directions: a style (mix) instead
-    feet = "stance"  # its stances (masculine, feminine, youthful) need it: see the model card
+    default_feet = "stance"  # its stances (masculine, feminine, youthful) need it: see the model card
 
     def __init__(self, model, rep, metadata: dict, weights=None, path=None, intensity: float = 1.0):
         from .networks import batch_invariant

@@ -84,6 +84,9 @@ class TrainConfig:
     # slide 1.32-1.41 -> 1.10-1.30, timing sync and FMD better in every run, judged exhausted
     # 64/55/78/77 -> 68/84/69/75 %.
     ema: float = 0.999
+    # The foot lock ``--feet auto`` serves the model with (motion.footlock.FEET), recorded in
+    # the checkpoint; None: its kind's own (``Restyler.default_feet``). It changes no training.
+    feet: str | None = None
     network: NetworkConfig = field(default_factory=NetworkConfig)
 
     def to_dict(self) -> dict:
@@ -124,6 +127,7 @@ def shared_metadata(cfg, rep, styles_trained: str) -> dict:
         "licence": f"{D.DATA_LICENCE}: trained on the {D.DATA_NAME} (Kobayashi et al., arXiv:2306.08861); "
                    f"the weights may only be used non-commercially",
         "git_revision": ckpt.git_revision(),
+        **({"feet": cfg.feet} if cfg.feet else {}),
     }
 
 

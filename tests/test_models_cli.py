@@ -46,6 +46,35 @@ def test_train_cli_rejects_an_unknown_style(tmp_path, capsys):
 
 
 @needs_data
+def test_a_checkpoint_names_the_foot_lock_it_is_served_with(tiny_run, tmp_path, capsys):
+    """``train --feet`` records the lock ``--feet auto`` then takes; without it a pair model
+    takes the input's feet; a lock this stylecast does not know is refused in one sentence."""
+    from stylecast.models import checkpoint as ckpt
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.footlock import AUTO_FEET, FEET, feet_for
+
+    assert Restyler.load(str(tiny_run / "model.safetensors")).feet == "input"
+    assert main(["train", "--max-words", "8", "--epochs", "1", "--batch-size", "4", "--words-per-epoch", "4",
+                 "--threads", "1", "--feet", "stance", "--out", str(tmp_path / "run"), "--no-progress"]) == 0
+    restyler = Restyler.load(str(tmp_path / "run" / "model.safetensors"))
+    assert restyler.feet == "stance" and feet_for(AUTO_FEET, restyler) == FEET["stance"]
+    tensors, meta = ckpt.read_checkpoint(tmp_path / "run" / "model.safetensors")
+    ckpt.save_checkpoint(tmp_path / "glued.safetensors", tensors, {**meta, "feet": "glued"})
+    capsys.readouterr()
+    assert main(["restyle", str(CLIP), "-o", str(tmp_path / "x.bvh"), "--model", str(tmp_path / "glued.safetensors")]) == 2
+    err = capsys.readouterr().err
+    assert "names the foot lock 'glued', which this stylecast does not know (input, stance)" in err
+    assert err.count("\n") == 1
+
+
+def test_train_refuses_an_unknown_foot_lock_before_reading_anything(tmp_path, capsys):
+    code = main(["train", "--feet", "auto", "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--feet 'auto' is not a foot lock a model can name; use one of input, stance" in err
+    assert err.count("\n") == 1
+
+
+@needs_data
 def test_restyle_keeps_the_input_skeleton_and_frame_count(tiny_run, tmp_path, capsys):
     out = tmp_path / "out.bvh"
     assert main(["restyle", str(CLIP), "-o", str(out), "--model", str(tiny_run / "model.safetensors"),
