@@ -59,7 +59,8 @@ and the foot turns about the vertical as the restyled one; the knee keeps its re
 plane. While a foot is free the offsets follow the restyled leg; while it is locked they
 move at most ``stance_rate`` cm (``turn_rate`` degrees) a frame, so a planted foot lands
 where the restyled leg put it and stays there (it may settle into a new stance, never
-visibly slide). Until a stream's first fade-in from pass-through has ended, the offsets
+visibly slide). A foot's heading counts in proportion to its length on the floor: a foot
+pointing down has none to follow. Until a stream's first fade-in from pass-through has ended, the offsets
 follow freely: the restyled stance arrives after the feet are down. Each model kind names
 its lock (``FEET``, ``--feet auto``): the pair model keeps the input's feet, since the
 stance costs its exhausted (which lives in the pelvis height over the input's feet) more
@@ -119,6 +120,12 @@ class ContactSettings:
     # frame moves the ball of a 15 cm foot 0.01 cm).
     turn_cap: float = 30.0
     turn_rate: float = 0.04
+    # A foot's heading is only as sure as its length on the floor (ankle to ball, cm): a
+    # foot pointing down (toe-off, a swing about to land) has none, and following it turned
+    # a landing foot by 54 degrees in one frame (a held-out walk). The turn follows a foot
+    # fully from turn_sure cm on the floor, not at all below turn_unsure, in between in part.
+    turn_unsure: float = 2.0
+    turn_sure: float = 6.0
 
 
 # Where planted feet go (``--feet``). "input": on the input's own ankles, the knees bent in
@@ -199,6 +206,7 @@ class StanceOffset:
     def __init__(self, settings: ContactSettings):
         self.cap, self.rate = settings.stance_cap, settings.stance_rate
         self.turn_cap, self.turn_rate = np.radians(settings.turn_cap), np.radians(settings.turn_rate)
+        self.turn_unsure, self.turn_sure = settings.turn_unsure, settings.turn_sure
         self._offset: list | None = None  # [[x, z, turn], [x, z, turn]] of the last frame
         # A stream starts in pass-through and fades the restyle in, so the restyled stance
         # arrives after the feet are down: before this frame the offsets follow it freely
@@ -217,6 +225,8 @@ class StanceOffset:
         locked = locked & (np.arange(t0, t0 + len(locked)) >= self.settled_from)[:, None]
         turn = _heading(restyled[1] - restyled[0]) - _heading(own[1] - own[0])
         turn = (turn + np.pi) % (2 * np.pi) - np.pi
+        on_floor = np.minimum(_floor_length(restyled[1] - restyled[0]), _floor_length(own[1] - own[0]))
+        sure = np.clip((on_floor - self.turn_unsure) / (self.turn_sure - self.turn_unsure), 0.0, 1.0)
         wanted = np.concatenate([(restyled[0] - own[0])[..., [0, 2]], turn[..., None]], axis=-1)
         length = np.linalg.norm(wanted[..., :2], axis=-1, keepdims=True)
         wanted = np.concatenate([wanted[..., :2] * np.minimum(1.0, self.cap / np.maximum(length, 1e-9)),
@@ -225,10 +235,10 @@ class StanceOffset:
         current = self._offset if self._offset is not None else wanted[0].tolist()
         # A rate limit is a recurrence; on Python floats because the daemon runs it one
         # frame at a time per performer (numpy's per-call cost would be most of it).
-        for i, (frame, held) in enumerate(zip(wanted.tolist(), locked.tolist())):
+        for i, (frame, held, certainty) in enumerate(zip(wanted.tolist(), locked.tolist(), sure.tolist())):
             for foot in (0, 1):
                 (x, z, turn), (wx, wz, wturn) = current[foot], frame[foot]
-                dx, dz, dturn = wx - x, wz - z, wturn - turn
+                dx, dz, dturn = wx - x, wz - z, (wturn - turn) * certainty[foot]
                 if held[foot]:
                     step = (dx * dx + dz * dz) ** 0.5
                     if step > self.rate:
@@ -657,6 +667,11 @@ def _feet_of_one_frame(root, rotations, leg_offsets):
 def _heading(v: np.ndarray) -> np.ndarray:
     """(..., 3) -> the angle about the vertical (radians) that turns +Z onto v's floor part."""
     return np.arctan2(v[..., 0], v[..., 2])
+
+
+def _floor_length(v: np.ndarray) -> np.ndarray:
+    """(..., 3) -> the length of v's floor part (the vertical is y)."""
+    return np.hypot(v[..., 0], v[..., 2])
 
 
 def _speeds(positions: np.ndarray) -> np.ndarray:

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import (FEET, LEGS, ContactSettings, FootLock, _hysteresis, leg_chain,
-                                      solve_lock_jobs)
+from stylecast.motion.footlock import (FEET, LEGS, ContactSettings, FootLock, StanceOffset, _hysteresis,
+                                      leg_chain, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
@@ -389,6 +389,28 @@ def test_a_restyled_turn_of_the_feet_is_kept_while_they_stay_planted():
         p_out = leg_chain(new_roots, out, SK.offsets)[0]
         np.testing.assert_allclose(heading(p_out)[1:], heading(expected)[1:], atol=0.1)
         assert horizontal_speed(p_out[1:, :, 3]).max() < 1e-6  # the balls of the feet do not move
+
+
+def test_the_stance_turn_holds_while_a_foot_points_down():
+    """A foot pointing straight down has no heading: the stance turn holds where it was
+    rather than follow round-off (a landing foot was turned 54 degrees in one frame), and
+    follows again in part as the foot comes back onto the floor."""
+    stance = StanceOffset(STANCE)
+    ankle = np.zeros((30, 2, 3))
+    turned = np.radians(20.0) * np.ones(30)
+    ball = np.stack([12 * np.sin(turned), 0 * turned, 12 * np.cos(turned)], -1)[:, None].repeat(2, axis=1)
+    own = (ankle, ankle + [0.0, 0.0, 12.0])
+    flat = stance.track(0, own, (ankle, ball), np.zeros((30, 2), bool))  # free: follows at once
+    np.testing.assert_allclose(np.degrees(flat[:, :, 2]), 20.0)
+    down = ball.copy()
+    down[:, :, [0, 2]] = [[-0.3, 0.2], [0.4, -0.1]]  # nearly straight down: headings of round-off
+    down[:, :, 1] = -12.0
+    held = stance.track(30, own, (ankle, down), np.zeros((30, 2), bool))
+    np.testing.assert_allclose(np.degrees(held[:, :, 2]), 20.0)
+    part = np.zeros((1, 2, 3))
+    part[:, :, 1:] = [-11.3, 4.0]  # 4 cm on the floor, half way from unsure to sure, heading 0
+    step = stance.track(60, (ankle[:1], own[1][:1]), (ankle[:1], part), np.zeros((1, 2), bool))
+    np.testing.assert_allclose(np.degrees(step[0, :, 2]), 10.0)  # half of the way to 0 in one frame
 
 
 def test_a_planted_leg_bends_its_knee_the_way_the_restyle_turned_it():
