@@ -175,7 +175,8 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
     planted = M.planted(p_in)
     return {"jerk_in": M.jerk(p_in), "jerk_out": M.jerk(p_out),
             "slide_in": M.slide_samples(p_in, planted), "slide_out": M.slide_samples(p_out, planted),
-            "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out)}
+            "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
+            "peak_jerk_ratio": M.peak_jerk_ratio(p_in, p_out)}
 
 
 def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_action: list[np.ndarray],
@@ -198,6 +199,7 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
     dynamics_by_judge = [float(np.mean(d == target)) for d in dyn] if dyn.shape[1] else []
     sync = [c["sync"] for c in per_clip if np.isfinite(c["sync"])]
     sink = np.concatenate([c["penetration"] for c in per_clip])
+    peaks = [c["peak_jerk_ratio"] for c in per_clip]
     return {
         "windows": int(pred.shape[1]),
         "judged_target": float(np.mean(style_by_judge)) if style_by_judge else float("nan"),
@@ -210,6 +212,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "action_taken_as": {a: float(np.mean(act == k)) for k, a in enumerate(actions)} if act.shape[1] else {},
         "jerk_ratio": {g: g_out[g] / max(g_in[g], 1e-12) for g in g_in},
         "jerk_cm_per_frame3": g_out,
+        "peak_jerk_ratio": float(max(peaks)) if peaks else float("nan"),  # the worst clip
+        "peak_jerk_ratio_median": float(np.median(peaks)) if peaks else float("nan"),
         "slide_cm_per_frame": float(s_out.mean()) if s_out.size else float("nan"),
         "slide_input_cm_per_frame": float(s_in.mean()) if s_in.size else float("nan"),
         "slide_ratio": float(s_out.mean() / max(s_in.mean(), 1e-9)) if s_in.size else float("nan"),

@@ -55,6 +55,20 @@ def test_a_jittered_copy_raises_jerk_the_smoothed_one_does_not():
     assert 0.8 < slow < 1.2
 
 
+def test_a_one_frame_pop_fails_the_peak_jerk_though_the_mean_jerk_passes():
+    """A foot turned 30 degrees for one frame of a 10 s take (the stance lock turned a
+    landing foot 54 degrees in one frame) is lost in the take's mean jerk; the largest
+    one-frame jerk over the input's sees it."""
+    q, roots = smooth_motion(600)
+    sk = humanoid_skeleton_default()
+    popped = q.copy()
+    popped[300, FOOT] = rot.multiply(q[300, FOOT], rot.exp_map(np.array([0.0, np.radians(30.0), 0.0])))
+    m = _clip_measures(q, popped, roots, roots.copy(), sk)
+    assert M.group_means(m["jerk_out"])["all"] / M.group_means(m["jerk_in"])["all"] < 1.10  # the mean passes
+    assert m["peak_jerk_ratio"] > 1.5  # the pop fails
+    assert _clip_measures(q, q.copy(), roots, roots.copy(), sk)["peak_jerk_ratio"] == pytest.approx(1.0)
+
+
 def planted_foot_positions(frames: int = 120, slide_cm: float = 0.0) -> np.ndarray:
     """Positions (T, J, 3): every joint walks past at 3 cm per frame except the left foot,
     standing on the floor; with ``slide_cm`` it moves that far sideways per frame."""
