@@ -347,6 +347,23 @@ def test_the_ramp_never_looks_further_ahead_than_the_stream_delay():
     assert FootLock.for_stream(SK, delay=60).ramp == ContactSettings.ramp
 
 
+def test_the_lock_sets_in_and_lets_go_with_zero_slope():
+    """Around a contact the weight follows a smoothstep over the ramp, the same on both
+    sides: a linear ramp's corners were the largest one-frame jerk of a restyled walk."""
+    lock = FootLock(SK)
+    roots, q = stepping(240)
+    contacts = lock.push(roots, q)
+    right = contacts[:, 1]
+    start = int(np.flatnonzero(right[1:] & ~right[:-1])[0]) + 1  # the right foot's first touch-down
+    w = lock.weights(0, 240)[:, 1]
+    r = lock.ramp
+    u = np.arange(1, r + 1) / (r + 1)
+    np.testing.assert_allclose(w[start - r:start], u * u * (3 - 2 * u))  # rises with zero slope at 0...
+    assert w[start] == 1.0
+    end = start + int(np.argmin(right[start:]))  # ...and falls after the contact the same way
+    np.testing.assert_allclose(w[end:end + r], (u * u * (3 - 2 * u))[::-1])
+
+
 def test_a_rig_that_is_not_the_humanoid_is_refused():
     from stylecast.motion.skeleton import Skeleton
 
