@@ -223,11 +223,12 @@ class Generator(CorrectionGenerator):
 # by both, and a product of one row (one word's style code) goes to a matrix-vector kernel
 # that rounds unlike the matrix-matrix one. That rounding (1e-7) differed between the
 # daemon's per-tick batches and ``restyle``'s whole clip, and the foot lock amplifies it
-# at nearly straight knees: ``serve`` and ``restyle --live`` parted by 1.6e-4 degrees,
-# where the issue allows 1e-4. The forms below give every word the same bits in any batch
-# on any thread count (tests/test_restyler.py checks the shipped models); training keeps
-# the fast kernels. ``batch_invariant`` swaps them in; other modules register theirs.
-INFERENCE_FORMS: dict[type, type] = {}
+# at nearly straight knees: ``serve`` and ``restyle --live`` parted by up to 3.4e-4 degrees
+# on held-out clips with ``--feet stance``, where the issue allows 1e-4. The forms below
+# give every word the same bits in any batch on any thread count
+# (tests/test_batch_invariance.py checks the shipped models); training keeps the fast
+# kernels. ``batch_invariant`` swaps them in (``INFERENCE_FORMS``, below the two forms);
+# other modules register theirs (``conditioning.RowStyleCodes``).
 
 
 class RowConv1d(nn.Conv1d):
@@ -258,7 +259,7 @@ class RowLinear(nn.Linear):
         return out if self.bias is None else out + self.bias
 
 
-INFERENCE_FORMS.update({nn.Conv1d: RowConv1d, nn.Linear: RowLinear})
+INFERENCE_FORMS: dict[type, type] = {nn.Conv1d: RowConv1d, nn.Linear: RowLinear}  # training layer -> form
 
 
 def batch_invariant(model: nn.Module) -> nn.Module:

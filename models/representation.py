@@ -89,7 +89,7 @@ def _atanh(x):
     for bit); for inference the same function through log1p, because torch.atanh rounds
     an element differently with the size of the tensor it is in (a word alone against a
     word in a batch), while log1p does not: a live restyler's words must not depend on
-    their batch (``networks.RowConv1d``)."""
+    their batch (``networks.INFERENCE_FORMS``)."""
     import torch
 
     if torch.is_grad_enabled():
