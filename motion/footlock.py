@@ -62,9 +62,7 @@ where the restyled leg put it and stays there (it may settle into a new stance, 
 visibly slide). A foot's heading counts in proportion to its length on the floor: a foot
 pointing down has none to follow. Until a stream's first fade-in from pass-through has ended, the offsets
 follow freely: the restyled stance arrives after the feet are down. Each model kind names
-its lock (``FEET``, ``--feet auto``): the pair model keeps the input's feet, since the
-stance costs its exhausted (which lives in the pelvis height over the input's feet) more
-than it gives.
+its lock (``FEET``, ``--feet auto``), and a checkpoint may name another (``train --feet``).
 """
 
 from __future__ import annotations
@@ -129,14 +127,14 @@ class ContactSettings:
 
 
 # Where planted feet go (``--feet``). "input": on the input's own ankles, the knees bent in
-# the input's plane; the pair models keep it (the previous default read 83.0 % exhausted on
-# the evaluation's judge panel against 62.8 % with "stance"; today's reads 74.9 % against
-# 77.3 %, but stance is not shipped for it yet: see the model card). "stance": beside them,
-# where the restyled legs stand, turned and bent as restyled; the multi-style model reads
-# most as its targets so (80.1 % on average over six against 55.7 %). Each model kind names its own (``feet``), which
-# "auto", the default, takes (figures in models/checkpoints/MODEL_CARD.md).
+# the input's plane; a pair model keeps it unless its checkpoint names another (v2 read 83.0 %
+# exhausted on the evaluation's judge panel against 62.8 % with "stance"). "stance": beside
+# them, where the restyled legs stand, turned and bent as restyled; the multi-style model
+# reads most as its targets so (80.1 % on average over six against 55.7 %), and the shipped
+# pair default names it (77.3 % against 74.7 %, and fewer pops). "auto", the default, takes
+# the model's own (``Restyler.feet``; figures in models/checkpoints/MODEL_CARD.md).
 FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=15.0)}
-AUTO_FEET = "auto"  # the model's own choice (its ``feet`` attribute), else "input"
+AUTO_FEET = "auto"  # the model's own choice (its ``feet``), else "input"
 
 
 def check_feet(name: str) -> str:
