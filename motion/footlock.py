@@ -85,6 +85,7 @@ LEGS = tuple(tuple(HUMANOID_BONES.index(f"{side}{b}") for b in ("UpperLeg", "Low
 LEG_INDEX = np.array(LEGS)  # (2 sides, 4 bones): both legs are processed as one batch
 HIPS = HUMANOID_BONES.index("Hips")
 FLOOR_MARGIN = 1.0  # cm above the floor from which a foot in the air is eased up (``_soft_floor``)
+KNEE_LEAN = 2.0  # cm a straight leg's knee pole leans over the toes when it must fold (``solve_legs``)
 
 
 @dataclass(frozen=True)
@@ -281,13 +282,23 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
 
 
+def knee_direction(legs: np.ndarray) -> np.ndarray:
+    """Leg joint positions (..., 2, 4, 3) as ``leg_chain``'s -> where each knee points off
+    its own hip-ankle line (..., 2, 3): the plane it bends in, whatever the ankle's target."""
+    socket, knee, ankle = legs[..., 0, :], legs[..., 1, :], legs[..., 2, :]
+    line = _unit(ankle - socket)
+    k = knee - socket
+    return k - np.sum(k * line, axis=-1, keepdims=True) * line
+
+
 def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, ankle_target: np.ndarray,
-               foot_world: np.ndarray, knee_pole: np.ndarray | None = None) -> np.ndarray:
+               foot_world: np.ndarray, knee_towards: np.ndarray | None = None) -> np.ndarray:
     """Two-bone IK of both legs: local rotations (n, 2, 3, 4) of UpperLeg, LowerLeg and
     Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches),
-    bend the knee towards ``knee_pole`` (n, 2, 3; None: in the plane it has in
-    ``rotations``) and give the foot the world rotation ``foot_world`` (n, 2, 4); the hips
-    are those of ``rotations``; ``offsets`` as ``leg_chain``'s."""
+    bend the knee towards ``knee_towards`` (n, 2, 3, a direction as ``knee_direction``'s;
+    None: the way it points in ``rotations``) and give the foot the world rotation
+    ``foot_world`` (n, 2, 4); the hips are those of ``rotations``; ``offsets`` as
+    ``leg_chain``'s."""
     pos, world, hips = leg_chain(roots, rotations, offsets)
     thigh = np.linalg.norm(offsets[..., LEG_INDEX[:, 1], :], axis=-1)  # (2,) or (n, 2): socket to knee
     shin = np.linalg.norm(offsets[..., LEG_INDEX[:, 2], :], axis=-1)  # knee to ankle
@@ -297,7 +308,18 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     axis = _unit(to_target)
     along = (thigh ** 2 - shin ** 2 + dist ** 2) / (2 * dist)  # law of cosines
     height = np.sqrt(np.maximum(thigh ** 2 - along ** 2, 0.0))
-    pole = (knee if knee_pole is None else knee_pole) - socket
+    # The knee's direction off its own hip-ankle line, not the knee's point off the line to
+    # the target: a planted foot held far behind a leg that swung on put the restyled knee
+    # on that line, and the bend flipped from front to back in one frame (36 cm, a held-out
+    # walk). Where the ankle already is, the two are the same.
+    pole = knee_direction(pos) if knee_towards is None else knee_towards
+    # A straight leg asked to bend has no direction of its own (round-off flipped a knee
+    # lifted off the floor by 5 cm and back in one frame): the pole leans over the toes,
+    # by as much as the leg must fold beyond where it is (nothing for a target where the
+    # ankle already is, so a leg left alone stays as it was).
+    fold = np.clip(np.linalg.norm(pos[:, :, 2] - socket, axis=-1) - dist, 0.0, 1.0)[..., None]
+    toes = rot.apply(foot_world, offsets[..., LEG_INDEX[:, 3], :])
+    pole = pole + KNEE_LEAN * fold * _unit(toes - np.sum(toes * axis, axis=-1, keepdims=True) * axis)
     bend = _unit(pole - np.sum(pole * axis, axis=-1, keepdims=True) * axis)
     new_knee = socket + along[..., None] * axis + height[..., None] * bend
     new_ankle = socket + dist[..., None] * axis
@@ -567,7 +589,7 @@ def _lock_planted(rows: _Rows, at: np.ndarray) -> None:
         return
     offsets, inputs, outputs = rows.offsets_of(at), rows.inputs[at], rows.outputs[at]
     pos_in, world_in, _ = leg_chain(rows.roots[at], inputs, offsets)
-    ankle, foot, knee = pos_in[:, :, 2], world_in[:, :, 2], pos_in[:, :, 1]  # the input's own
+    ankle, foot, knee = pos_in[:, :, 2], world_in[:, :, 2], knee_direction(pos_in)  # the input's own
     if rows.with_stance[at[0]]:  # beside them, turned as restyled, the knee in its restyled plane
         stance = rows.stance[at]
         ankle = ankle + stance[:, :, :2] @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import (FEET, LEGS, ContactSettings, FootLock, StanceOffset, _hysteresis,
-                                      leg_chain, solve_lock_jobs)
+from stylecast.motion.footlock import (FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, StanceOffset, _hysteresis,
+                                      leg_chain, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
@@ -345,6 +345,37 @@ def test_the_soft_floor_is_continuous_with_its_slope_and_never_lifts_above_the_i
 def test_the_ramp_never_looks_further_ahead_than_the_stream_delay():
     assert FootLock.for_stream(SK, delay=1).ramp == 1
     assert FootLock.for_stream(SK, delay=60).ramp == ContactSettings.ramp
+
+
+def solved_knees(thigh_degrees: np.ndarray, knee_degrees: float, lift: float) -> tuple[np.ndarray, np.ndarray]:
+    """The left leg swung forward by each of ``thigh_degrees`` about the hip (its knee bent
+    ``knee_degrees``), solved onto one fixed target: the ankle of the unswung, straight leg
+    raised ``lift`` cm, so the knee must fold -> (solved knee positions (n, 3), the socket)."""
+    n = len(thigh_degrees)
+    q = np.tile(rot.identity((J,)), (n, 1, 1))
+    upper, lower = (HUMANOID_BONES.index(f"Left{b}") for b in ("UpperLeg", "LowerLeg"))
+    q[:, upper] = rot.exp_map(np.stack([-np.radians(thigh_degrees), 0 * thigh_degrees, 0 * thigh_degrees], -1))
+    q[:, lower] = rot.exp_map(np.array([np.radians(knee_degrees), 0.0, 0.0]))
+    roots = np.tile([0.0, 100.0, 0.0], (n, 1))
+    straight, world, _ = leg_chain(roots[:1], np.tile(rot.identity((J,)), (1, 1, 1)), SK.offsets)
+    target = np.repeat(straight[:, :, 2] + [0.0, lift, 0.0], n, axis=0)
+    out = q.copy()
+    out[:, LEG_INDEX[:, :3]] = solve_legs(roots, q, SK.offsets, target, np.repeat(world[:, :, 2], n, axis=0))
+    pos = leg_chain(roots, out, SK.offsets)[0]
+    np.testing.assert_allclose(pos[:, 0, 2], target[:, 0], atol=1e-6)  # the ankle is on its target
+    return pos[:, 0, 1], pos[0, 0, 0]
+
+
+def test_a_knee_asked_to_fold_keeps_its_side_as_the_leg_swings_past_its_target():
+    """A planted foot held behind a leg that swung on: the restyled knee crossed the line
+    from hip to target and the fold flipped from front to back in one frame (36 cm, a
+    held-out walk). The knee folds the way it points off its own hip-ankle line; a straight
+    leg folds over its toes (+z)."""
+    sweep = np.linspace(-5.0, 5.0, 201)  # the thigh from 5 degrees back to 5 forward, 0.05 apart
+    for knee_degrees in (6.0, 0.0):  # a slightly bent knee, and a straight leg
+        knees, socket = solved_knees(sweep, knee_degrees, lift=6.0)
+        assert (knees[:, 2] - socket[2] > 5.0).all()  # always in front
+        assert np.linalg.norm(np.diff(knees, axis=0), axis=-1).max() < 0.5  # never a jump
 
 
 def test_the_lock_sets_in_and_lets_go_with_zero_slope():
