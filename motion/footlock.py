@@ -19,8 +19,9 @@ Lock (``FootLock.apply``, per output frame t): the leg weight w(t) rises to 1 ov
 the contacts by a smoothstepped triangle, which looks ``ramp`` frames ahead: the daemon has ``delay``
 frames of input beyond the frame it renders, so ``ramp`` <= delay). Where w > 0 the
 hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle and the
-knee bends in the plane of the input's knee (or, with the stance kept, beside the input's
-ankle and in the restyled knee's own plane); the foot takes the input's world rotation
+knee bends the way the input's knee points off its own hip-ankle line (or, with the stance
+kept, beside the input's ankle and the way the restyled knee points; a straight leg asked
+to fold leans over its toes); the foot takes the input's world rotation
 (turned as restyled, with the stance) and the toes the input's local one. The result is
 slerped with the restyled leg by w. Only rotations change, so bone lengths are kept by
 construction. The target follows the input's ankle at every frame (not a position frozen
