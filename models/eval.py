@@ -173,10 +173,11 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
     p_in = M.world_positions(inp, roots, skeleton)
     p_out = M.world_positions(out, out_roots, skeleton)
     planted = M.planted(p_in)
-    return {"jerk_in": M.jerk(p_in), "jerk_out": M.jerk(p_out),
+    jerk_in, jerk_out = M.jerk(p_in), M.jerk(p_out)
+    return {"jerk_in": jerk_in, "jerk_out": jerk_out,
             "slide_in": M.slide_samples(p_in, planted), "slide_out": M.slide_samples(p_out, planted),
             "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
-            "peak_jerk_ratio": M.peak_jerk_ratio(p_in, p_out)}
+            "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out)}
 
 
 def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_action: list[np.ndarray],

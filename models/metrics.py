@@ -59,11 +59,12 @@ def jerk(positions: np.ndarray) -> np.ndarray:
     return np.linalg.norm(np.diff(positions, n=3, axis=0), axis=-1)
 
 
-def peak_jerk_ratio(p_in: np.ndarray, p_out: np.ndarray) -> float:
-    """The output's largest jerk of any joint in any frame over the input's: a pop (one
-    frame where a foot or a knee snaps) hardly moves the mean jerk of a clip, this it
-    doubles (a stance turn of 54 degrees in one frame read 1.74 here, 1.01 on the mean)."""
-    return float(jerk(p_out).max() / max(jerk(p_in).max(), 1e-12))
+def peak_jerk_ratio(jerk_in: np.ndarray, jerk_out: np.ndarray) -> float:
+    """``jerk`` of the input and of the output -> the output's largest jerk of any joint in
+    any frame over the input's: a pop (one frame where a foot or a knee snaps) hardly moves
+    the mean jerk of a clip, this it doubles (a stance turn of 54 degrees in one frame read
+    1.74 here, 1.01 on the mean)."""
+    return float(jerk_out.max() / max(jerk_in.max(), 1e-12))
 
 
 def group_means(per_joint: np.ndarray) -> dict[str, float]:

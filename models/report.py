@@ -121,9 +121,9 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
             lines.append(f"| {name} | {_pct(v) if shown.endswith('%') else _num(v)} | {shown} | "
                          f"{'yes' if met[key] else '**no**'} |")
         lines += ["", f"## All variants, {setting} (all actions)", "",
-                  "| variant | judged target | action kept | FMD | jerk all | jerk hands | jerk feet | largest one-frame "
-                  "jerk / input's, worst clip (median) | slide cm/frame (ratio) | feet below floor mean / p99 cm | "
-                  "sync | seam (/ input's) | judged target, dynamics |",
+                  "| variant | judged target | action kept | FMD | jerk all | jerk hands | jerk feet | "
+                  "largest one-frame jerk / input's, worst clip (median) | slide cm/frame (ratio) | "
+                  "feet below floor mean / p99 cm | sync | seam (/ input's) | judged target, dynamics |",
                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for name, r in res.items():
             o = r[setting]["overall"]

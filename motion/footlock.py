@@ -16,8 +16,8 @@ where their floor is).
 
 Lock (``FootLock.apply``, per output frame t): the leg weight w(t) rises to 1 over
 ``ramp`` frames before a contact and falls over ``ramp`` frames after it (a dilation of
-the contacts by a smoothstepped triangle, which looks ``ramp`` frames ahead: the daemon has ``delay``
-frames of input beyond the frame it renders, so ``ramp`` <= delay). Where w > 0 the
+the contacts by a smoothstepped triangle, which looks ``ramp`` frames ahead: the daemon
+has ``delay`` frames of input beyond the frame it renders, so ``ramp`` <= delay). Where w > 0 the
 hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle and the
 knee bends the way the input's knee points off its own hip-ankle line (or, with the stance
 kept, beside the input's ankle and the way the restyled knee points; a straight leg asked
@@ -61,8 +61,8 @@ plane. While a foot is free the offsets follow the restyled leg; while it is loc
 move at most ``stance_rate`` cm (``turn_rate`` degrees) a frame, so a planted foot lands
 where the restyled leg put it and stays there (it may settle into a new stance, never
 visibly slide). A foot's heading counts in proportion to its length on the floor: a foot
-pointing down has none to follow. Until a stream's first fade-in from pass-through has ended, the offsets
-follow freely: the restyled stance arrives after the feet are down. Each model kind names
+pointing down has none to follow. Until a stream's first fade-in from pass-through has
+ended, the offsets follow freely: the restyled stance arrives after the feet are down. Each model kind names
 its lock (``FEET``, ``--feet auto``), and a checkpoint may name another (``train --feet``).
 """
 
@@ -224,9 +224,10 @@ class StanceOffset:
         if self.cap <= 0:
             return None
         locked = locked & (np.arange(t0, t0 + len(locked)) >= self.settled_from)[:, None]
-        turn = _heading(restyled[1] - restyled[0]) - _heading(own[1] - own[0])
+        foot_out, foot_in = restyled[1] - restyled[0], own[1] - own[0]  # ankle to ball
+        turn = _heading(foot_out) - _heading(foot_in)
         turn = (turn + np.pi) % (2 * np.pi) - np.pi
-        on_floor = np.minimum(_floor_length(restyled[1] - restyled[0]), _floor_length(own[1] - own[0]))
+        on_floor = np.minimum(_floor_length(foot_out), _floor_length(foot_in))
         sure = np.clip((on_floor - self.turn_unsure) / (self.turn_sure - self.turn_unsure), 0.0, 1.0)
         wanted = np.concatenate([(restyled[0] - own[0])[..., [0, 2]], turn[..., None]], axis=-1)
         length = np.linalg.norm(wanted[..., :2], axis=-1, keepdims=True)
@@ -348,11 +349,12 @@ class FootLock:
         self.set_offsets(skeleton.offsets)
         self.ramp = settings.ramp if ramp is None else max(0, int(ramp))
         # The lock weight around a contact over 2 ramp + 1 frames: a smoothstep of a
-        # triangle, so the lock sets in and lets go with zero slope. A linear ramp's corners at touch-down were the largest jerk of a
-        # restyled walk (its largest one-frame jerk 1.33x the input's, median over held-out
-        # walks; 1.01x smoothstepped; runs 1.88x -> 1.51x, planted-foot slide 1.32 -> 1.16).
+        # triangle, so the lock sets in and lets go with zero slope. A linear ramp's corners
+        # at touch-down were the largest jerk of a restyled walk (its largest one-frame jerk
+        # 1.33x the input's, median over held-out walks; 1.01x smoothstepped; runs 1.88x ->
+        # 1.51x, planted-foot slide 1.32 -> 1.16).
         linear = 1.0 - np.abs(np.arange(-self.ramp, self.ramp + 1)) / (self.ramp + 1)
-        self._triangle = linear * linear * (3.0 - 2.0 * linear)
+        self._blend = linear * linear * (3.0 - 2.0 * linear)
         self.pelvis = PelvisHeight(settings.pelvis_tau, settings.pelvis_cap)
         self.stance = StanceOffset(settings)
         self.frames = 0  # input frames pushed
@@ -457,9 +459,9 @@ class FootLock:
         if r == 0:
             return c
         if n == 1:  # the daemon's case, one frame per tick: one window, no view to build
-            return (c * self._triangle[:, None]).max(axis=0, keepdims=True)
+            return (c * self._blend[:, None]).max(axis=0, keepdims=True)
         windows = sliding_window_view(c, 2 * r + 1, axis=0)  # (n, 2, 2r+1)
-        return (windows * self._triangle).max(axis=-1)
+        return (windows * self._blend).max(axis=-1)
 
     def apply(self, t0: int, roots: np.ndarray, inputs: np.ndarray,
               outputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -590,12 +592,14 @@ def _lock_planted(rows: _Rows, at: np.ndarray) -> None:
         return
     offsets, inputs, outputs = rows.offsets_of(at), rows.inputs[at], rows.outputs[at]
     pos_in, world_in, _ = leg_chain(rows.roots[at], inputs, offsets)
-    ankle, foot, knee = pos_in[:, :, 2], world_in[:, :, 2], knee_direction(pos_in)  # the input's own
+    ankle, foot = pos_in[:, :, 2], world_in[:, :, 2]  # the input's own
     if rows.with_stance[at[0]]:  # beside them, turned as restyled, the knee in its restyled plane
         stance = rows.stance[at]
         ankle = ankle + stance[:, :, :2] @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
         foot = rot.multiply(rot.exp_map(stance[:, :, 2:] * np.array([0.0, 1.0, 0.0])), foot)
         knee = None
+    else:
+        knee = knee_direction(pos_in)  # the way the input's knee points
     solved = solve_legs(rows.new_roots[at], outputs, offsets, ankle, foot, knee)
     target = np.concatenate([solved, inputs[:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
     weight = np.broadcast_to(rows.weights[at][:, :, None], target.shape[:-1])

@@ -61,7 +61,8 @@ def test_a_checkpoint_names_the_foot_lock_it_is_served_with(tiny_run, tmp_path, 
     tensors, meta = ckpt.read_checkpoint(tmp_path / "run" / "model.safetensors")
     ckpt.save_checkpoint(tmp_path / "glued.safetensors", tensors, {**meta, "feet": "glued"})
     capsys.readouterr()
-    assert main(["restyle", str(CLIP), "-o", str(tmp_path / "x.bvh"), "--model", str(tmp_path / "glued.safetensors")]) == 2
+    glued = str(tmp_path / "glued.safetensors")
+    assert main(["restyle", str(CLIP), "-o", str(tmp_path / "x.bvh"), "--model", glued]) == 2
     err = capsys.readouterr().err
     assert "names the foot lock 'glued', which this stylecast does not know (input, stance)" in err
     assert err.count("\n") == 1
