@@ -11,8 +11,10 @@ The machine is shared, so the load average is printed with the results.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -24,19 +26,56 @@ REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "bandai" / "dataset-2" / "data"
 
 
-def median_ms(fn, repeats: int, warmup: int = 5) -> tuple[float, float]:
-    """Median wall-clock and median process-CPU milliseconds per call. On a shared,
-    loaded machine the CPU time is what the call itself costs; wall time includes waiting
-    for a core."""
+def median_ms(fn, repeats: int, warmup: int = 5, cpu_clock=time.process_time) -> tuple[float, float]:
+    """Median wall-clock and median CPU milliseconds per call (the process's, or the
+    calling thread's with ``cpu_clock=time.thread_time``). On a shared, loaded machine the
+    CPU time is what the call itself costs; wall time includes waiting for a core."""
     for _ in range(warmup):
         fn()
     wall, cpu = [], []
     for _ in range(repeats):
-        t, c = time.perf_counter(), time.process_time()
+        t, c = time.perf_counter(), cpu_clock()
         fn()
         wall.append(time.perf_counter() - t)
-        cpu.append(time.process_time() - c)
+        cpu.append(cpu_clock() - c)
     return 1000 * statistics.median(wall), 1000 * statistics.median(cpu)
+
+
+@contextlib.contextmanager
+def busy_python_thread(switch_interval: float):
+    """A thread running pure Python beside the caller (as the daemon's output loop does
+    beside its model thread), with the GIL's switch interval set for the duration."""
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(switch_interval)
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            sum(range(100))
+
+    thread = threading.Thread(target=spin, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+        sys.setswitchinterval(before)
+
+
+def eager_restyle(restyler):
+    """``restyle_words`` as the previous release ran it: the same operations, eager, each
+    one releasing and taking back the GIL (the baseline of ``models/pipeline.py``)."""
+    import torch
+
+    from stylecast.models.pipeline import WordPipeline
+
+    def restyle(words):
+        network, conditioning = restyler._network(len(words))
+        with torch.no_grad():
+            return WordPipeline(network, restyler.torch_representation)(torch.from_numpy(words), *conditioning).numpy()
+
+    return restyle
 
 
 def throughput(fn, frames: int) -> tuple[float, float]:
@@ -99,6 +138,15 @@ def main() -> int:
                  median_ms(lambda: restyler.restyle_words(words[:1]), args.repeats), ""))
     rows.append(("restyle_words, 64 words (numpy in/out)",
                  median_ms(lambda: restyler.restyle_words(words), max(5, args.repeats // 3)), ""))
+    # The daemon calls the model from a thread beside its busy output loop: what the GIL
+    # costs a call (CPU: the calling thread's own; 1 ms is the daemon's switch interval).
+    eager = eager_restyle(restyler)
+    for switch in (0.005, 0.001):
+        with busy_python_thread(switch):
+            label = f"restyle_words, 8 words, busy Python thread beside it, GIL switch {switch * 1e3:g} ms"
+            rows.append((label, median_ms(lambda: restyler.restyle_words(words[:8]), 10, 2, time.thread_time), ""))
+            rows.append(("  baseline: the same operations eager (the previous release)",
+                         median_ms(lambda: eager(words[:8]), 5 if switch > 0.002 else 10, 1, time.thread_time), ""))
 
     # Offline throughput: the stream part alone (humanoid rotations at 60 fps), and the
     # whole `restyle` path on a shared clip looped to about a minute (read/write excluded).

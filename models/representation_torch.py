@@ -101,12 +101,13 @@ def quat_to_xzy(q: torch.Tensor) -> torch.Tensor:
     b = torch.asin(torch.clamp(-r01, -1.0, 1.0))
     a = torch.atan2(r21, r11)
     c = torch.atan2(r02, r00)
+    # Gimbal lock: computed everywhere and chosen where it happens, never branched on in
+    # Python (the restyle runs as a traced graph, ``pipeline``, which has no branches).
     locked = r01.abs() > 1 - 1e-9
-    if bool(locked.any()):  # gimbal lock is rare: its branch only where it happens
-        r12 = 2 * (y * z - x * w)
-        r22 = 1 - 2 * (x * x + y * y)
-        a = torch.where(locked, torch.atan2(-r12, r22), a)
-        c = torch.where(locked, torch.zeros_like(c), c)
+    r12 = 2 * (y * z - x * w)
+    r22 = 1 - 2 * (x * x + y * y)
+    a = torch.where(locked, torch.atan2(-r12, r22), a)
+    c = torch.where(locked, torch.zeros_like(c), c)
     return torch.stack([a, b, c], dim=-1) * (180.0 / torch.pi)
 
 

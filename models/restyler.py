@@ -7,7 +7,8 @@
 One call is one batched forward pass under ``torch.no_grad`` on the model's device
 (``--device``): heading removal, encoding, generator, decoding, heading restoration and
 the hemisphere fix all run in torch (``representation_torch``), vectorised over the
-batch, with no per-word Python or numpy. Numpy words in give numpy words out; a torch
+batch, with no per-word Python or numpy, as one traced graph (``pipeline``: one release
+of the GIL per call, so a busy thread beside it cannot stall it op by op). Numpy words in give numpy words out; a torch
 tensor stays a tensor (on the model's device). ``restyle_words_numpy`` is the numpy
 reference path the tests compare against. The stream code (``stylecast.motion.words``)
 calls ``restyle_words`` once per batch of words and blends in numpy.
@@ -148,14 +149,20 @@ class Restyler:
         x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
         return self._generate(x.to(self.device), direction).cpu().numpy()
 
+    def _network(self, batch: int, direction: str | None = None) -> tuple:
+        """The generator module a batch of ``batch`` words goes through and the tensors
+        that condition it (none for a pair model)."""
+        return self.generator(direction), ()
+
     def _generate(self, features, direction: str | None):
         """Features (B, 60, J, C) float32 tensor on the model's device -> restyled features."""
         import torch
 
         from .networks import from_channels, to_channels
 
+        network, conditioning = self._network(features.shape[0], direction)
         with torch.no_grad():
-            y = self.generator(direction)(to_channels(features.contiguous()))  # one memory layout, one kernel: bit-equal paths
+            y = network(to_channels(features.contiguous()), *conditioning)  # one memory layout, one kernel: bit-equal paths
         return from_channels(y, features.shape[2])
 
     @property
@@ -172,6 +179,7 @@ class Restyler:
         model's device. One batched call on the device, nothing per word."""
         import torch
 
+        from . import pipeline
         from . import representation_torch as RT
 
         is_tensor = isinstance(words, torch.Tensor)
@@ -181,10 +189,8 @@ class Restyler:
         if len(w) == 0:
             out = w.clone()
         else:
-            trep = self.torch_representation
-            flat, yaw = RT.remove_heading(w)
-            restyled = trep.decode(self._generate(trep.encode(flat), direction))
-            out = RT.same_hemisphere(RT.restore_heading(restyled, yaw), w)
+            network, conditioning = self._network(len(w), direction)
+            out = pipeline.restyle(network, self.torch_representation, w.contiguous(), conditioning)
         return out if is_tensor else out.cpu().numpy()
 
     def restyle_words_numpy(self, words: np.ndarray, direction: str | None = None) -> np.ndarray:

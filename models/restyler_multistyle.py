@@ -135,19 +135,17 @@ class MultiStyleRestyler(Restyler):
 
     __call__ = restyle_words
 
-    def _generate(self, features, weights):
+    def _network(self, batch: int, weights=None) -> tuple:
+        """The conditioned generator and its conditioning: each word's mix (``weights``
+        (B, S), default this restyler's) and the intensity."""
         import torch
 
-        from .networks import from_channels, to_channels
-
-        b = features.shape[0]
         if weights is None:
-            w = torch.as_tensor(self.weights, dtype=torch.float32, device=self.device).expand(b, -1)
+            w = torch.as_tensor(self.weights, dtype=torch.float32, device=self.device).expand(batch, -1)
         else:
             w = torch.as_tensor(np.asarray(weights, np.float32), device=self.device)
-            if tuple(w.shape) != (b, len(self.style_names)):
-                raise ValueError(f"style weights must have shape ({b}, {len(self.style_names)}), got {tuple(w.shape)}")
-        intensity = torch.full((b,), self.intensity, dtype=torch.float32, device=self.device)
-        with torch.no_grad():
-            y = self.model(to_channels(features.contiguous()), w, intensity)
-        return from_channels(y, features.shape[2])
+            if tuple(w.shape) != (batch, len(self.style_names)):
+                raise ValueError(f"style weights must have shape ({batch}, {len(self.style_names)}), got "
+                                 f"{tuple(w.shape)}")
+        intensity = torch.full((batch,), self.intensity, dtype=torch.float32, device=self.device)
+        return self.model, (w, intensity)

@@ -1,0 +1,81 @@
+"""``restyle_words`` as one TorchScript call: quaternion words in, restyled words out.
+
+Why a traced graph and not eager torch: the Global Interpreter Lock. Eager torch
+releases the GIL around each of the ~150 small operations of a restyle (heading,
+representation, generator layers, hemisphere) and must win it back after each one. The
+daemon calls the model from a worker thread while its output loop runs Python for every
+performer, and a thread waiting for the GIL waits up to ``sys.getswitchinterval()``
+(5 ms) each time: measured here, 8 words that take 4.9 ms alone took 610 ms beside a
+busy Python thread, and in the daemon at 32 performers the model's calls took 1.9x its
+own CPU time (``bench/bench_models.py`` "beside a busy thread"). A traced graph runs
+in torch's C++ interpreter, which releases the GIL once for the whole call.
+
+The graph is traced from the eager modules on the first batch (``WordPipeline``; sizes
+stay symbolic, so any batch size runs it) and kept per generator module, so every
+restyler sharing a generator (directions, style mixes) shares its graph. It runs with
+TorchScript's optimising passes off: they decompose ``addmm`` into a product and a sum,
+which rounds differently from the eager layers; off, the graph computes exactly the
+eager operations and gives the same bits (tests/test_pipeline.py).
+"""
+
+from __future__ import annotations
+
+import threading
+import warnings
+import weakref
+
+import torch
+from torch import nn
+
+from . import representation_torch as RT
+from .networks import from_channels, to_channels
+
+
+class WordPipeline(nn.Module):
+    """Words (B, T, J, 4) float64 and the generator's conditioning tensors -> restyled
+    words: heading removed, encoded, generated, decoded, heading restored, each
+    quaternion in the input's hemisphere (q and -q are one rotation, and the blender
+    interpolates between input and output)."""
+
+    def __init__(self, generator: nn.Module, trep: RT.TorchRepresentation):
+        super().__init__()
+        self.generator = generator
+        self.trep = trep  # plain attribute: its reference rotations are constants of the graph
+
+    def forward(self, words: torch.Tensor, *conditioning: torch.Tensor) -> torch.Tensor:
+        flat, yaw = RT.remove_heading(words)
+        features = self.trep.encode(flat)
+        y = from_channels(self.generator(to_channels(features.contiguous()), *conditioning), words.shape[2])
+        return RT.same_hemisphere(RT.restore_heading(self.trep.decode(y), yaw), words)
+
+
+_traced: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # generator module -> its graph
+_tracing = threading.Lock()  # one trace per generator, even when two threads ask at once
+
+
+def restyle(generator: nn.Module, trep: RT.TorchRepresentation, words: torch.Tensor,
+            conditioning: tuple = ()) -> torch.Tensor:
+    """``WordPipeline(generator, trep)(words, *conditioning)`` as one traced call."""
+    graph = _traced.get(generator)
+    if graph is None:
+        graph = _trace(generator, trep, words, conditioning)
+    with torch.no_grad(), torch.jit.optimized_execution(False):
+        return graph(words, *conditioning)
+
+
+def _trace(generator, trep, words, conditioning):
+    with _tracing:
+        graph = _traced.get(generator)
+        if graph is None:
+            with torch.no_grad(), torch.jit.optimized_execution(False), warnings.catch_warnings():
+                # The graph keeps the reference rotations and the fixed matrices as
+                # constants, which is what they are; the tracer warns about each.
+                warnings.simplefilter("ignore", torch.jit.TracerWarning)
+                # torch marks TorchScript deprecated in favour of torch.compile and
+                # torch.export; neither gives this: compile fuses operations (other
+                # rounding) and needs a C++ compiler at start-up, an exported program runs
+                # op by op from Python. torch is pinned (constraints.txt), so it stays.
+                warnings.simplefilter("ignore", DeprecationWarning)
+                graph = torch.jit.trace(WordPipeline(generator, trep), (words, *conditioning), check_trace=False)
+            _traced[generator] = graph
+    return graph
