@@ -259,24 +259,50 @@ def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relax
                 calls=np.percentile(d.worker.call_ms, 99) if d.worker.call_ms else 0.0)
 
 
-def _capacity_in_process(n, port, seconds, hop, latency, start, conn):
+class PreviousModelCall:
+    """The shipped restyler called as the previous release called it: its operations run
+    eagerly, each taking the GIL back from the output loop (``models/pipeline.py``), with
+    Python's default 5 ms GIL switch interval and start-up's heap not frozen
+    (``engine._settle_heap``). The baseline of the capacity runs."""
+
+    SWITCH_INTERVAL = 0.005
+
+    def __init__(self, restyler):
+        from bench_models import eager_restyle
+
+        self._restyler = restyler
+        self.restyle_words = eager_restyle(restyler)
+
+    def __getattr__(self, name):
+        return getattr(self._restyler, name)
+
+
+def _capacity_in_process(n, port, seconds, hop, latency, previous, start, conn):
     """One worker of a ``--workers`` capacity run: a whole daemon over its slice, started
-    with the others (``start``: a barrier passed once every worker has its model)."""
+    with the others (``start``: a barrier passed once every worker has its model).
+    ``previous``: the previous release's model call (``PreviousModelCall``)."""
     model, _ = restyler()
+    if previous:
+        from stylecast.daemon import engine
+
+        model = PreviousModelCall(model)
+        engine.LIVE_SWITCH_INTERVAL = PreviousModelCall.SWITCH_INTERVAL
+        engine._settle_heap = lambda: False
     motion = base_motion()
     start.wait()
     conn.send(run_capacity(n, model, motion, seconds, hop=hop, latency=latency, port=port))
     conn.close()
 
 
-def run_capacity_workers(n, workers, seconds, hop=0, latency="default"):
+def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous=False):
     """``run_capacity`` as ``serve --workers N`` runs it: each process a whole daemon over a
     contiguous slice of the performers (daemon/workers.py), all at once; figures combined."""
     from stylecast.daemon.workers import split
 
     slices = split(n, workers)
     port = free_ports(n)  # performer k to port + k, whichever worker serves it
-    parts = run_together(_capacity_in_process, [(len(r), port + r.start, seconds, hop, latency) for r in slices])
+    parts = run_together(_capacity_in_process,
+                         [(len(r), port + r.start, seconds, hop, latency, previous) for r in slices])
     total = {key: sum(p[key] for p in parts) for key in ("dropped", "late", "cpu", "received", "sent")}
     worst = {key: max(p[key] for p in parts) for key in ("delay", "p99", "tick99", "wall", "calls")}
     return dict(n=n, **total, **worst)
@@ -289,13 +315,15 @@ def bench_capacity(model, motion, seconds=8.0, workers=1):
     the performers spread over that many processes as ``serve --workers`` does."""
     runs = (("before issue 12: hop 15, delay 15", 15, "relaxed", True, False),
             ("--latency default", 0, "default", False, True))
-    if workers > 1:
-        runs = ((f"--latency default --workers {workers}", 0, "default", False, True),)
+    if workers > 1:  # legacy here: the previous release's model call (PreviousModelCall)
+        runs = ((f"--latency default --workers {workers}, as the previous release ran it (eager model call, GIL "
+                 f"switch {PreviousModelCall.SWITCH_INTERVAL * 1e3:g} ms, heap not frozen)", 0, "default", True, True),
+                (f"--latency default --workers {workers}", 0, "default", False, True))
     for label, hop, latency, legacy, strict in runs:
         rows, best = [], 0
         for n in (4, 8, 16, 24, 32, 40, 48, 64):
             if workers > 1:
-                r = run_capacity_workers(n, workers, seconds, hop=hop, latency=latency)
+                r = run_capacity_workers(n, workers, seconds, hop=hop, latency=latency, previous=legacy)
             else:
                 r = run_capacity(n, model, motion, seconds, hop=hop, latency=latency, legacy=legacy)
             ok = r["dropped"] == 0 and (r["late"] == 0 or not strict)

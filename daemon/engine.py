@@ -32,6 +32,7 @@ Per tick, in this order (the order is what makes fake-clock replays exact):
 
 from __future__ import annotations
 
+import gc
 import logging
 import math
 import threading
@@ -65,6 +66,12 @@ PLAN_EVERY_TICKS = 60  # how often the slack planner's estimate is checked (1 s)
 # 575 ms with 2 threads against 11.5 ms with one (issue 12). Batches, not threads, are
 # how the live path scales (and worker processes, one per core).
 LIVE_TORCH_THREADS = 1
+# How long a thread may hold the GIL while another waits for it (Python's default: 5 ms).
+# The output loop, the receive thread and the model's worker thread share one GIL; every
+# hand-over at the default cost a waiting thread up to 5 ms. At 1 ms, 64 performers over
+# two processes had no late word (at 5 ms, 40 did; ``bench/bench_daemon.py
+# capacity-workers``); the extra switches cost nothing measurable here.
+LIVE_SWITCH_INTERVAL = 0.001
 
 
 def stagger_phase(hop: int, k: int, performers: int) -> int:
@@ -81,12 +88,27 @@ def stagger_phase(hop: int, k: int, performers: int) -> int:
     return (k // BATCH_GROUP) * hop // groups
 
 
-def _limit_torch_threads() -> None:
+def _live_process_settings() -> None:
+    """Process-wide settings the live path needs (``LIVE_TORCH_THREADS``,
+    ``LIVE_SWITCH_INTERVAL``); the daemon owns its process."""
     import sys
 
+    sys.setswitchinterval(LIVE_SWITCH_INTERVAL)
     torch = sys.modules.get("torch")  # only a model that uses torch has imported it
     if torch is not None and torch.get_num_threads() > LIVE_TORCH_THREADS:
         torch.set_num_threads(LIVE_TORCH_THREADS)
+
+
+def _settle_heap() -> bool:
+    """Collect start-up's garbage once and freeze what is left (``gc.freeze``): with torch
+    and a model loaded a full collection walks ~200k objects (75-190 ms here), and one
+    that comes during the show stalls every thread at once (dropped ticks, late words:
+    seen in the first seconds of the capacity runs). Frozen, start-up's objects are never
+    walked again; later collections see only what the show allocates. True when done
+    (``close`` thaws the heap again)."""
+    gc.collect()
+    gc.freeze()
+    return True
 
 
 class Daemon:
@@ -123,6 +145,7 @@ class Daemon:
         self.style = style_label(restyler)
         self.ticks = 0
         self.dropped_ticks = 0
+        self._froze_heap = False  # start() froze the heap (``_settle_heap``); close() thaws it
         self.tick_lateness = LatencyWindow()  # how late each tick started (scheduler, load)
         self.control_errors = 0
         self._status_replies = 0
@@ -176,8 +199,9 @@ class Daemon:
     # -- the clock ----------------------------------------------------------------------
     def start(self) -> None:
         if not self.clock.virtual:
-            _limit_torch_threads()
+            _live_process_settings()
             self._calibrate()
+            self._froze_heap = _settle_heap()
         self._t0 = self.clock.now()
         self._next_status = self._t0 + self.config.status_interval
         for s in self.sessions:
@@ -190,7 +214,7 @@ class Daemon:
 
     def words_per_tick(self) -> int:
         """The most words one tick hands the model: the performers sharing a word phase."""
-        phases = [s.settings.phase for s in self.sessions]
+        phases = [s.phase for s in self.sessions]  # each session's own (stagger_phase), not the shared setting
         return max(phases.count(p) for p in set(phases))
 
     def _calibrate(self) -> None:
@@ -436,6 +460,9 @@ class Daemon:
 
     def close(self) -> None:
         """Stop threads, close sockets, finish recordings (valid BVH). Safe to call twice."""
+        if self._froze_heap:
+            gc.unfreeze()  # whatever the show left behind can be collected again
+            self._froze_heap = False
         self.worker.close()
         if self.control is not None:
             self.control.close()
