@@ -195,6 +195,7 @@ def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline
     daemon.run()
     daemon.close()
     assert [s.phase for s in daemon.sessions] == [0] * 8 + [5, 5]
+    assert daemon.words_per_tick() == 8  # what the model is timed on before the start, not all 10
     assert daemon.worker.batches < daemon.worker.words
     for k, phase in ((0, 0), (9, 5)):
         live = np.stack([f.rotations for f in frames[f"p{k}"]])
