@@ -4,11 +4,14 @@ Why a traced graph and not eager torch: the Global Interpreter Lock. Eager torch
 releases the GIL around each of the ~150 small operations of a restyle (heading,
 representation, generator layers, hemisphere) and must win it back after each one. The
 daemon calls the model from a worker thread while its output loop runs Python for every
-performer, and a thread waiting for the GIL waits up to ``sys.getswitchinterval()``
-(5 ms) each time: measured here, 8 words that take 4.9 ms alone took 610 ms beside a
-busy Python thread, and in the daemon at 32 performers the model's calls took 1.9x its
-own CPU time (``bench/bench_models.py`` "beside a busy thread"). A traced graph runs
-in torch's C++ interpreter, which releases the GIL once for the whole call.
+performer, and a thread waiting for the GIL may wait ``sys.getswitchinterval()`` each
+time. Measured here: 8 words that take 4.5 ms alone took from 14 to 1,100 ms beside a
+thread spinning in Python, depending on how the threads fell on the cores
+(``bench/bench_models.py`` "beside a busy thread" shows the mild case); in the daemon
+at 32 performers (virtual clock) a call's wall time was 1.9x its own CPU time, 1.4x
+traced; at 64 performers over two processes, 8 s runs, the eager call let 96 and 1,048
+frames come late, the traced one none (``bench/bench_daemon.py capacity-workers``). A
+traced graph runs in torch's C++ interpreter, which releases the GIL once per call.
 
 The graph is traced from the eager modules on the first batch (``WordPipeline``; sizes
 stay symbolic, so any batch size runs it) and kept per generator module, so every

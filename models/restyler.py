@@ -8,8 +8,8 @@ One call is one batched forward pass under ``torch.no_grad`` on the model's devi
 (``--device``): heading removal, encoding, generator, decoding, heading restoration and
 the hemisphere fix all run in torch (``representation_torch``), vectorised over the
 batch, with no per-word Python or numpy, as one traced graph (``pipeline``: one release
-of the GIL per call, so a busy thread beside it cannot stall it op by op). Numpy words in give numpy words out; a torch
-tensor stays a tensor (on the model's device). ``restyle_words_numpy`` is the numpy
+of the GIL per call, so a busy thread beside it cannot stall it op by op). Numpy words
+in give numpy words out; a torch tensor stays a tensor (on the model's device). ``restyle_words_numpy`` is the numpy
 reference path the tests compare against. The stream code (``stylecast.motion.words``)
 calls ``restyle_words`` once per batch of words and blends in numpy.
 """
