@@ -161,8 +161,8 @@ class Restyler:
         from .networks import from_channels, to_channels
 
         network, conditioning = self._network(features.shape[0], direction)
-        with torch.no_grad():
-            y = network(to_channels(features.contiguous()), *conditioning)  # one memory layout, one kernel: bit-equal paths
+        with torch.no_grad():  # one memory layout, one kernel: bit-equal paths
+            y = network(to_channels(features.contiguous()), *conditioning)
         return from_channels(y, features.shape[2])
 
     @property
