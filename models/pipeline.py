@@ -5,9 +5,9 @@ releases the GIL around each of the ~150 small operations of a restyle (heading,
 representation, generator layers, hemisphere) and must win it back after each one. The
 daemon calls the model from a worker thread while its output loop runs Python for every
 performer, and a thread waiting for the GIL may wait ``sys.getswitchinterval()`` each
-time. Measured here: 8 words that take 4.5 ms alone took from 14 to 1,100 ms beside a
+time. Measured here: 8 words that take 4.5 ms alone took from 14 to 2,050 ms beside a
 thread spinning in Python, depending on how the threads fell on the cores
-(``bench/bench_models.py`` "beside a busy thread" shows the mild case); in the daemon
+(``bench/bench_models.py``, "beside a busy thread"; traced: 8-15 ms); in the daemon
 at 32 performers (virtual clock) a call's wall time was 1.9x its own CPU time, 1.4x
 traced; at 64 performers over two processes, 8 s runs, the eager call let 96 and 1,048
 frames come late, the traced one none (``bench/bench_daemon.py capacity-workers``). A
