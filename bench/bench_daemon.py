@@ -278,10 +278,8 @@ class PreviousModelCall:
     SWITCH_INTERVAL = 0.005
 
     def __init__(self, restyler):
-        from bench_models import eager_restyle
-
         self._restyler = restyler
-        self.restyle_words = eager_restyle(restyler)
+        self.restyle_words = restyler.restyle_words_eager
 
     def __getattr__(self, name):
         return getattr(self._restyler, name)

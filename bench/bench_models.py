@@ -63,21 +63,6 @@ def busy_python_thread(switch_interval: float):
         sys.setswitchinterval(before)
 
 
-def eager_restyle(restyler):
-    """``restyle_words`` as the previous release ran it: the same operations, eager, each
-    one releasing and taking back the GIL (the baseline of ``models/pipeline.py``)."""
-    import torch
-
-    from stylecast.models.pipeline import WordPipeline
-
-    def restyle(words):
-        network, conditioning = restyler._network(len(words))
-        with torch.no_grad():
-            return WordPipeline(network, restyler.torch_representation)(torch.from_numpy(words), *conditioning).numpy()
-
-    return restyle
-
-
 def throughput(fn, frames: int) -> tuple[float, float]:
     t, c = time.perf_counter(), time.process_time()
     fn()
@@ -141,13 +126,12 @@ def main() -> int:
                  median_ms(lambda: restyler.restyle_words(words), max(5, args.repeats // 3)), ""))
     # The daemon calls the model from a thread beside its busy output loop: what the GIL
     # costs a call (CPU: the calling thread's own; 1 ms is the daemon's switch interval).
-    eager = eager_restyle(restyler)
     for switch in (0.005, 0.001):
         with busy_python_thread(switch):
             label = f"restyle_words, 8 words, busy Python thread beside it, GIL switch {switch * 1e3:g} ms"
             rows.append((label, median_ms(lambda: restyler.restyle_words(words[:8]), 10, 2, time.thread_time), ""))
             rows.append(("  baseline: the same operations eager (the previous release)",
-                         median_ms(lambda: eager(words[:8]), 5 if switch > 0.002 else 10, 1, time.thread_time), ""))
+                         median_ms(lambda: restyler.restyle_words_eager(words[:8]), 5 if switch > 0.002 else 10, 1, time.thread_time), ""))
 
     # Offline throughput: the stream part alone (humanoid rotations at 60 fps), and the
     # whole `restyle` path on a shared clip looped to about a minute (read/write excluded).

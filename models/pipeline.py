@@ -66,11 +66,19 @@ def restyle(generator: nn.Module, trep: RT.TorchRepresentation, words: torch.Ten
         return graph(words, *conditioning)
 
 
+def restyle_eager(generator: nn.Module, trep: RT.TorchRepresentation, words: torch.Tensor,
+                  conditioning: tuple = ()) -> torch.Tensor:
+    """The same operations run one by one, not traced: the reference the graph is held to
+    (tests/test_pipeline.py) and the benchmarks' baseline (the previous release's call)."""
+    with torch.no_grad():
+        return WordPipeline(generator, trep)(words, *conditioning)
+
+
 def _trace(generator, trep, words, conditioning):
     with _tracing:
         graph = _traced.get(generator)
         if graph is None:
-            with torch.no_grad(), torch.jit.optimized_execution(False), warnings.catch_warnings():
+            with torch.no_grad(), warnings.catch_warnings():
                 # The graph keeps the reference rotations and the fixed matrices as
                 # constants, which is what they are; the tracer warns about each.
                 warnings.simplefilter("ignore", torch.jit.TracerWarning)

@@ -193,6 +193,17 @@ class Restyler:
             out = pipeline.restyle(network, self.torch_representation, w.contiguous(), conditioning)
         return out if is_tensor else out.cpu().numpy()
 
+    def restyle_words_eager(self, words: np.ndarray, *args) -> np.ndarray:
+        """``restyle_words`` on numpy words with its operations run one by one instead of as
+        the traced graph (``pipeline.restyle_eager``); ``args`` as ``restyle_words``'s."""
+        import torch
+
+        from . import pipeline
+
+        network, conditioning = self._network(len(words), *args)
+        w = torch.from_numpy(np.asarray(words, dtype=np.float64)).to(self.device)
+        return pipeline.restyle_eager(network, self.torch_representation, w, conditioning).cpu().numpy()
+
     def restyle_words_numpy(self, words: np.ndarray, direction: str | None = None) -> np.ndarray:
         """The numpy reference of ``restyle_words`` (representation work on the host, per
         ``representation``); kept for the tests that prove the torch path equal to it."""

@@ -41,20 +41,13 @@ def conditioning_args(restyler: Restyler, n: int) -> tuple:
     return (np.random.default_rng(n).dirichlet(np.ones(len(STYLES)), size=n),)
 
 
-def eager(restyler: Restyler, words: np.ndarray, *args) -> np.ndarray:
-    network, conditioning = restyler._network(len(words), *args)
-    with torch.no_grad():
-        out = pipeline.WordPipeline(network, restyler.torch_representation)(torch.from_numpy(words), *conditioning)
-    return out.numpy()
-
-
 @pytest.mark.parametrize("name", SHIPPED)
 def test_the_traced_call_gives_the_eager_pipelines_bits_in_any_batch(name):
     restyler = load(name)
     for n in (7, 1, 16):  # traced on the first, run on the others
         words = random_words(n, seed=n)
         args = conditioning_args(restyler, n)
-        assert np.array_equal(restyler.restyle_words(words, *args), eager(restyler, words, *args))
+        assert np.array_equal(restyler.restyle_words(words, *args), restyler.restyle_words_eager(words, *args))
 
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")  # torch.jit: see models/pipeline.py
@@ -97,7 +90,7 @@ def test_a_call_runs_no_python_between_its_operations(name):
     assert python_calls_during(lambda: restyler.restyle_words(words, *args)) == []
     # The known-bad case: the eager pipeline runs Python between its operations, each
     # time taking the GIL back from whatever else the process is doing.
-    assert len(python_calls_during(lambda: eager(restyler, words, *args))) > 20
+    assert len(python_calls_during(lambda: restyler.restyle_words_eager(words, *args))) > 20
 
 
 def test_restylers_sharing_a_generator_share_its_graph():
