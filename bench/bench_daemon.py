@@ -176,16 +176,18 @@ def table(title, header, rows):
         print(line(r))
 
 
-def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0, latency="default", legacy=False):
+def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0, latency="default", legacy=False,
+                worker=(0, 1)):
     """hop 0: the latency preset's hop and delay. ``legacy``: as before issue 12 (no model
-    timing before the start, no slack planning while running)."""
+    timing before the start, no slack planning while running). ``worker``: the daemon's
+    index among that many worker processes (``serve --workers``)."""
     from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
     cfg = DaemonConfig(hop=hop, latency=latency, control="off", out=[f"vmc://127.0.0.1:{port}"], bypass=bypass)
     sources = [indexed_source(motion, f"p{k}") for k in range(n)]
-    d = Daemon(cfg, sources, model, RealClock(), log_status=False)
+    d = Daemon(cfg, sources, model, RealClock(), log_status=False, worker=worker)
     if legacy:
         d._calibrate = d._plan_slack = lambda: None
     return d
@@ -253,10 +255,11 @@ def bench_presets(model, motion, n=8, seconds=8.0):
           f"performer)", ("setting", "final delay", "p99", "late frames", "dropped ticks", "goal p99", "met"), rows)
 
 
-def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relaxed", legacy=False, port=None):
+def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relaxed", legacy=False, port=None,
+                 worker=(0, 1)):
     port = free_ports(n) if port is None else port
     rx = Receiver([port + k for k in range(n)])
-    d = make_daemon(n, hop, model, motion, port, bypass=bypass, latency=latency, legacy=legacy)
+    d = make_daemon(n, hop, model, motion, port, bypass=bypass, latency=latency, legacy=legacy, worker=worker)
     cpu0, wall0 = time.process_time(), time.monotonic()
     d.run(duration=seconds)
     cpu, wall = time.process_time() - cpu0, time.monotonic() - wall0
@@ -270,10 +273,11 @@ def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relax
 
 
 class PreviousModelCall:
-    """The shipped restyler called as the previous release called it: its operations run
+    """The shipped restyler called as the previous releases called it: its operations run
     eagerly, each taking the GIL back from the output loop (``models/pipeline.py``), with
     Python's default 5 ms GIL switch interval and start-up's heap not frozen
-    (``engine._settle_heap``). The baseline of the capacity runs."""
+    (``engine._settle_heap``). The baseline of the capacity runs (whose worker processes
+    also start their clocks together, as before ``engine.worker_offset``)."""
 
     SWITCH_INTERVAL = 0.005
 
@@ -285,10 +289,11 @@ class PreviousModelCall:
         return getattr(self._restyler, name)
 
 
-def _capacity_in_process(n, port, seconds, hop, latency, previous, start, conn):
+def _capacity_in_process(n, port, seconds, hop, latency, previous, worker, start, conn):
     """One worker of a ``--workers`` capacity run: a whole daemon over its slice, started
-    with the others (``start``: a barrier passed once every worker has its model).
-    ``previous``: the previous release's model call (``PreviousModelCall``)."""
+    with the others (``start``: a barrier passed once every worker has its model), its
+    clock offset as ``serve`` offsets it (``worker``: index, count). ``previous``: the
+    previous release's model call (``PreviousModelCall``), every clock started at once."""
     model, _ = restyler()
     if previous:
         from stylecast.daemon import engine
@@ -298,7 +303,8 @@ def _capacity_in_process(n, port, seconds, hop, latency, previous, start, conn):
         engine._settle_heap = lambda: False
     motion = base_motion()
     start.wait()
-    conn.send(run_capacity(n, model, motion, seconds, hop=hop, latency=latency, port=port))
+    conn.send(run_capacity(n, model, motion, seconds, hop=hop, latency=latency, port=port,
+                           worker=(0, 1) if previous else worker))
     conn.close()
 
 
@@ -310,7 +316,8 @@ def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous
     slices = split(n, workers)
     port = free_ports(n)  # performer k to port + k, whichever worker serves it
     parts = run_together(_capacity_in_process,
-                         [(len(r), port + r.start, seconds, hop, latency, previous) for r in slices])
+                         [(len(r), port + r.start, seconds, hop, latency, previous, (w, len(slices)))
+                          for w, r in enumerate(slices)])
     total = {key: sum(p[key] for p in parts) for key in ("dropped", "late", "cpu", "received", "sent")}
     worst = {key: max(p[key] for p in parts) for key in ("delay", "p99", "tick99", "wall", "calls")}
     return dict(n=n, **total, **worst)
@@ -324,8 +331,9 @@ def bench_capacity(model, motion, seconds=8.0, workers=1):
     runs = (("before issue 12: hop 15, delay 15", 15, "relaxed", True, False),
             ("--latency default", 0, "default", False, True))
     if workers > 1:  # legacy here: the previous release's model call (PreviousModelCall)
-        runs = ((f"--latency default --workers {workers}, as the previous release ran it (eager model call, GIL "
-                 f"switch {PreviousModelCall.SWITCH_INTERVAL * 1e3:g} ms, heap not frozen)", 0, "default", True, True),
+        runs = ((f"--latency default --workers {workers}, as the previous releases ran it (eager model call, GIL "
+                 f"switch {PreviousModelCall.SWITCH_INTERVAL * 1e3:g} ms, heap not frozen, clocks started together)",
+                 0, "default", True, True),
                 (f"--latency default --workers {workers}", 0, "default", False, True))
     for label, hop, latency, legacy, strict in runs:
         rows, best = [], 0

@@ -148,10 +148,11 @@ def soak_receiver(socks, duration, ready, results) -> None:
 
 
 def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0, restyler: str = "auto",
-         hop: int = 0, log=print, first: int = 0, start=None) -> dict:
+         hop: int = 0, log=print, first: int = 0, start=None, worker=(0, 1)) -> dict:
     """``hop`` 0: serve's default settings (the ``--latency default`` preset). ``first``:
     the index of this process's first performer (its clips and names follow on from the
-    slices before it); ``start``: a barrier passed once every worker is ready."""
+    slices before it); ``start``: a barrier passed once every worker is ready; ``worker``:
+    this process's index and the number of processes (as ``serve --workers`` passes it)."""
     from tests.hardening_junk import bind_consecutive
 
     from stylecast.motion.clock import RealClock
@@ -177,7 +178,7 @@ def soak(minutes: float = 60.0, performers: int = 4, sample_every: float = 60.0,
     ready.wait(30)
     stop = threading.Event()
     cfg = DaemonConfig(hop=hop, control="127.0.0.1:0", out=[f"vmc://127.0.0.1:{base}"], status_interval=3600.0)
-    daemon = Daemon(cfg, sources, model, RealClock(stop), log_status=False)
+    daemon = Daemon(cfg, sources, model, RealClock(stop), log_status=False, worker=worker)
     samples = []
     state = {"next": 0.0, "t0": 0.0}
     full_collections = []  # seconds each full (generation 2) garbage collection took
@@ -309,7 +310,8 @@ def soak_workers(minutes: float, performers: int, workers: int, sample_every: fl
 
     slices = split(performers, workers)
     parts = run_together(_soak_in_process, [(dict(minutes=minutes, performers=len(r), sample_every=sample_every,
-                                                  restyler=restyler, first=r.start),) for r in slices])
+                                                  restyler=restyler, first=r.start, worker=(w, len(slices))),)
+                                            for w, r in enumerate(slices)])
     summaries = [part["summary"] for part in parts]
     added = ("late_frames", "late_frames_after_warmup", "dropped_ticks", "frames_sent", "frames_received")
     combined = {key: sum(s[key] for s in summaries) for key in added}

@@ -88,6 +88,25 @@ def stagger_phase(hop: int, k: int, performers: int) -> int:
     return (k // BATCH_GROUP) * hop // groups
 
 
+def worker_offset(hop: int, performers: int, worker: int, workers: int) -> float:
+    """Frame periods by which worker process ``worker`` of ``workers`` (``serve --workers``)
+    starts its output clock after a grid shared by all of them, so the model calls of
+    different processes take turns on the machine's cores instead of landing on the same
+    ticks. Each process's groups take ``phases`` evenly spaced ticks of the hop
+    (``stagger_phase``); the processes' grids are shifted by 1/``workers`` of that
+    spacing. Worker 0 and a lone daemon: 0. With hop 1 (``--latency low``) every call
+    falls on every tick and the shift is a fraction of a period."""
+    phases = min(-(-performers // BATCH_GROUP), hop)
+    return worker * hop / (phases * workers)
+
+
+def grid_start(now: float, hop: int, offset: float) -> float:
+    """The first output tick of a worker: the next multiple of ``hop`` frame periods on the
+    machine's monotonic clock (shared by every process), plus ``offset`` periods."""
+    grid = hop / FPS
+    return (math.floor(now / grid) + 1) * grid + offset / FPS
+
+
 def _live_process_settings() -> None:
     """Process-wide settings the live path needs (``LIVE_TORCH_THREADS``,
     ``LIVE_SWITCH_INTERVAL``); the daemon owns its process."""
@@ -114,10 +133,12 @@ def _settle_heap() -> bool:
 class Daemon:
     def __init__(self, config: DaemonConfig, sources: list, restyler, clock: Clock, *,
                  tap=None, frame_taps=None, model_loader=None, log_status: bool = True,
-                 first_index: int = 0, remote=None):
+                 first_index: int = 0, remote=None, worker: tuple[int, int] = (0, 1)):
         """``first_index``: the global index of this daemon's first performer (output ports
         and recording names count from it); ``remote``: a connection to the parent of a
-        worker process (``daemon.workers``), which forwards control and asks for status."""
+        worker process (``daemon.workers``), which forwards control and asks for status;
+        ``worker``: this process's index and the number of worker processes (their output
+        clocks take turns, ``worker_offset``)."""
         if not sources:
             raise UserError("no source given; add one such as --source bvh:///path/clip.bvh?loop=1")
         self.config = config.validate()
@@ -139,6 +160,7 @@ class Daemon:
         self.delay_notes: list[str] = []  # the status lines of delay raises and lowerings (also logged)
         self._configured_delay = self.settings.delay  # the planner never lowers below it
         self.first_index = first_index
+        self.worker_index, self.workers = worker
         self.remote = remote
         self.remote_stopped = False
         self.control: ControlServer | None = None
@@ -203,6 +225,9 @@ class Daemon:
             self._calibrate()
             self._froze_heap = _settle_heap()
         self._t0 = self.clock.now()
+        if self.workers > 1 and not self.clock.virtual:
+            offset = worker_offset(self.settings.hop, len(self.sessions), self.worker_index, self.workers)
+            self._t0 = grid_start(self._t0, self.settings.hop, offset)
         self._next_status = self._t0 + self.config.status_interval
         for s in self.sessions:
             s.source.start(self._t0)

@@ -41,8 +41,9 @@ def split(count: int, workers: int) -> list[range]:
     return [range(a, b) for a, b in zip(bounds, bounds[1:]) if b > a]
 
 
-def worker_main(config: DaemonConfig, first: int, conn) -> None:
-    """One worker process: a Daemon over config.source, performers numbered from ``first``."""
+def worker_main(config: DaemonConfig, first: int, worker: tuple[int, int], conn) -> None:
+    """One worker process: a Daemon over config.source, performers numbered from ``first``;
+    ``worker``: its index and the number of worker processes."""
     from stylecast.motion.clock import RealClock
     from .engine import Daemon
     from .restylers import load_restyler
@@ -56,7 +57,8 @@ def worker_main(config: DaemonConfig, first: int, conn) -> None:
         sources = open_sources(config.source, first)
         try:
             restyler = load_restyler(config.model, config.device)
-            daemon = Daemon(config, sources, restyler, RealClock(stop), first_index=first, remote=conn)
+            daemon = Daemon(config, sources, restyler, RealClock(stop), first_index=first, remote=conn,
+                            worker=worker)
         except BaseException:
             for s in sources:
                 s.close()
@@ -76,10 +78,10 @@ def worker_main(config: DaemonConfig, first: int, conn) -> None:
 
 
 class _Worker:
-    def __init__(self, ctx, config: DaemonConfig, first: int):
+    def __init__(self, ctx, config: DaemonConfig, first: int, worker: tuple[int, int]):
         self.first = first
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=worker_main, args=(config, first, child), name=f"stylecast-worker-{first}",
+        self.process = ctx.Process(target=worker_main, args=(config, first, worker, child), name=f"stylecast-worker-{first}",
                                    daemon=True)
         self.process.start()
         child.close()
@@ -131,9 +133,10 @@ def run_workers(config: DaemonConfig, stop: threading.Event | None = None, on_st
     workers = []
     control = None
     try:
-        for part in split(len(config.source), config.workers):
+        parts = split(len(config.source), config.workers)
+        for index, part in enumerate(parts):
             sub = dataclasses.replace(config, source=config.source[part.start:part.stop], control="off")
-            workers.append(_Worker(ctx, sub, part.start))
+            workers.append(_Worker(ctx, sub, part.start, (index, len(parts))))
         for w in workers:
             message = w.expect("ready", START_TIMEOUT_S)
             if message is None:

@@ -12,9 +12,13 @@ import pytest
 from pythonosc.osc_bundle import OscBundle
 from pythonosc.osc_message import OscMessage
 
-from stylecast.daemon.config import build_config
+from stylecast.daemon.config import DaemonConfig, build_config
+from stylecast.daemon.engine import Daemon, grid_start, stagger_phase, worker_offset
+from stylecast.daemon.restylers import IdentityRestyler
 from stylecast.daemon.workers import merge_snapshots, run_workers, split
+from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.motion.bvh import write_bvh
+from stylecast.motion.clock import OUTPUT_FPS, RealClock
 
 from .test_daemon import walk_clip
 from .test_daemon_control import osc
@@ -25,6 +29,46 @@ def test_split_is_contiguous_balanced_and_never_empty():
     assert split(3, 8) == [range(0, 1), range(1, 2), range(2, 3)]
     parts = split(64, 2)
     assert [len(p) for p in parts] == [32, 32] and parts[0].stop == parts[1].start
+
+
+def model_call_times(hop: int, performers: int, workers: int) -> list[set[float]]:
+    """Per worker process, when in the hop (frame periods after the shared grid) its
+    groups hand words to the model: each group's phase plus the worker's clock offset."""
+    times = []
+    for w, part in enumerate(split(performers, workers)):
+        offset = worker_offset(hop, len(part), w, len(split(performers, workers)))
+        times.append({round((stagger_phase(hop, k, len(part)) + offset) % hop, 6) for k in range(len(part))})
+    return times
+
+
+@pytest.mark.parametrize("hop, performers", [(4, 16), (4, 32), (4, 48), (4, 64), (1, 8), (10, 40)])
+def test_worker_processes_take_turns_with_the_model(hop, performers):
+    """Two workers' model calls never fall on the same moment of the hop (started together,
+    as a replay or the capacity bench starts them, both called on the same ticks: up to
+    18 ms later results at 16 performers on a 2-core machine, bench/bench_daemon.py)."""
+    first, second = model_call_times(hop, performers, 2)
+    assert first and second and not first & second
+    assert worker_offset(hop, performers // 2, 0, 2) == 0.0 and worker_offset(hop, performers, 0, 1) == 0.0
+    if performers <= 32:  # a group per phase at most: every call of a process on its own tick
+        assert all(len(t) == -(-performers // 2 // 8) for t in (first, second))
+
+
+def test_a_worker_starts_its_clock_on_the_shared_grid_after_its_offset():
+    hop, fps = 4, OUTPUT_FPS
+    assert grid_start(10.0, hop, 0.0) * fps / hop == pytest.approx(151.0)  # the next grid point, not this one
+    sources = [ReplaySource(walk_clip(120), f"p{k}", loop=True) for k in range(8)]
+    daemon = Daemon(DaemonConfig(control="off", status_interval=3600.0), sources, IdentityRestyler(), RealClock(),
+                    log_status=False, worker=(1, 2))
+    try:
+        before = time.monotonic()
+        daemon.start()
+        offset = worker_offset(daemon.settings.hop, 8, 1, 2)
+        assert offset == 2.0  # one group each: the second worker's calls half a hop later
+        grid_points = (daemon._t0 - offset / fps) * fps / hop
+        assert grid_points == pytest.approx(round(grid_points), abs=1e-6)
+        assert before < daemon._t0 <= before + 1.0  # soon: within a grid period of the calibration
+    finally:
+        daemon.close()
 
 
 def test_merged_status_lists_every_performer():
