@@ -243,14 +243,14 @@ def bench_presets(model, motion, n=8, seconds=8.0):
     table(f"Latency presets, {n} performers, {seconds:.0f} s each (loopback, ms)",
           ("setting", "hop", "final delay", "p50", "p99", "max", "late frames", "dropped ticks", "delay raises",
            "goal p99", "met"), rows)
-    workers = os.cpu_count() or 2  # serve's default: one worker process per core
+    workers = os.cpu_count() or 2  # one worker process per core (serve's own default is --workers 1)
     rows = []
     for latency, goal in (("default", 100.0), ("low", 35.0)):
         r = run_capacity_workers(n, workers, seconds, latency=latency)
         met = r["p99"] <= goal and r["late"] == 0 and r["dropped"] == 0
         rows.append((f"--latency {latency} --workers {workers}", r["delay"], f"{r['p99']:.1f}", r["late"], r["dropped"],
                      f"<= {goal:.0f}", "yes" if met else "NO"))
-    table(f"Latency presets over {workers} worker processes (serve's default), {n} performers, {seconds:.0f} s each "
+    table(f"Latency presets over {workers} worker processes (one per core), {n} performers, {seconds:.0f} s each "
           f"(ms; the daemon's own measure: input frame arrival -> restyled frame handed to its socket, worst "
           f"performer)", ("setting", "final delay", "p99", "late frames", "dropped ticks", "goal p99", "met"), rows)
 
