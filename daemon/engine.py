@@ -88,15 +88,15 @@ def stagger_phase(hop: int, k: int, performers: int) -> int:
     return (k // BATCH_GROUP) * hop // groups
 
 
-def worker_offset(hop: int, performers: int, worker: int, workers: int) -> float:
+def worker_offset(hop: int, phases: int, worker: int, workers: int) -> float:
     """Frame periods by which worker process ``worker`` of ``workers`` (``serve --workers``)
     starts its output clock after a grid shared by all of them, so the model calls of
     different processes take turns on the machine's cores instead of landing on the same
-    ticks. Each process's groups take ``phases`` evenly spaced ticks of the hop
-    (``stagger_phase``); the processes' grids are shifted by 1/``workers`` of that
-    spacing. Worker 0 and a lone daemon: 0. With hop 1 (``--latency low``) every call
-    falls on every tick and the shift is a fraction of a period."""
-    phases = min(-(-performers // BATCH_GROUP), hop)
+    ticks. A process's performer groups take ``phases`` evenly spaced ticks of the hop
+    (its sessions' distinct ``stagger_phase``s); the processes' grids are shifted by
+    1/``workers`` of that spacing. Worker 0 and a lone daemon: 0. With hop 1
+    (``--latency low``) every call falls on every tick and the shift is a fraction of a
+    period."""
     return worker * hop / (phases * workers)
 
 
@@ -160,7 +160,7 @@ class Daemon:
         self.delay_notes: list[str] = []  # the status lines of delay raises and lowerings (also logged)
         self._configured_delay = self.settings.delay  # the planner never lowers below it
         self.first_index = first_index
-        self.worker_index, self.workers = worker
+        self.process_index, self.process_count = worker  # not ``self.worker``, the model's thread
         self.remote = remote
         self.remote_stopped = False
         self.control: ControlServer | None = None
@@ -225,8 +225,9 @@ class Daemon:
             self._calibrate()
             self._froze_heap = _settle_heap()
         self._t0 = self.clock.now()
-        if self.workers > 1 and not self.clock.virtual:
-            offset = worker_offset(self.settings.hop, len(self.sessions), self.worker_index, self.workers)
+        if self.process_count > 1 and not self.clock.virtual:
+            phases = len({s.phase for s in self.sessions})
+            offset = worker_offset(self.settings.hop, phases, self.process_index, self.process_count)
             self._t0 = grid_start(self._t0, self.settings.hop, offset)
         self._next_status = self._t0 + self.config.status_interval
         for s in self.sessions:

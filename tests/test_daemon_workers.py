@@ -34,10 +34,11 @@ def test_split_is_contiguous_balanced_and_never_empty():
 def model_call_times(hop: int, performers: int, workers: int) -> list[set[float]]:
     """Per worker process, when in the hop (frame periods after the shared grid) its
     groups hand words to the model: each group's phase plus the worker's clock offset."""
-    times = []
-    for w, part in enumerate(split(performers, workers)):
-        offset = worker_offset(hop, len(part), w, len(split(performers, workers)))
-        times.append({round((stagger_phase(hop, k, len(part)) + offset) % hop, 6) for k in range(len(part))})
+    times, parts = [], split(performers, workers)
+    for w, part in enumerate(parts):
+        phases = {stagger_phase(hop, k, len(part)) for k in range(len(part))}
+        offset = worker_offset(hop, len(phases), w, len(parts))
+        times.append({round((phase + offset) % hop, 6) for phase in phases})
     return times
 
 
@@ -48,7 +49,7 @@ def test_worker_processes_take_turns_with_the_model(hop, performers):
     18 ms later results at 16 performers on a 2-core machine, bench/bench_daemon.py)."""
     first, second = model_call_times(hop, performers, 2)
     assert first and second and not first & second
-    assert worker_offset(hop, performers // 2, 0, 2) == 0.0 and worker_offset(hop, performers, 0, 1) == 0.0
+    assert worker_offset(hop, len(first), 0, 2) == 0.0 and worker_offset(hop, len(first), 0, 1) == 0.0
     if performers <= 32:  # a group per phase at most: every call of a process on its own tick
         assert all(len(t) == -(-performers // 2 // 8) for t in (first, second))
 
@@ -62,7 +63,7 @@ def test_a_worker_starts_its_clock_on_the_shared_grid_after_its_offset():
     try:
         before = time.monotonic()
         daemon.start()
-        offset = worker_offset(daemon.settings.hop, 8, 1, 2)
+        offset = worker_offset(daemon.settings.hop, len({s.phase for s in daemon.sessions}), 1, 2)
         assert offset == 2.0  # one group each: the second worker's calls half a hop later
         grid_points = (daemon._t0 - offset / fps) * fps / hop
         assert grid_points == pytest.approx(round(grid_points), abs=1e-6)
