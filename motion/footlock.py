@@ -20,9 +20,12 @@ the contacts by a smoothstepped triangle, which looks ``ramp`` frames ahead: the
 has ``delay`` frames of input beyond the frame it renders, so ``ramp`` <= delay). Where w > 0 the
 hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle and the
 knee bends the way the input's knee points off its own hip-ankle line (or, with the stance
-kept, beside the input's ankle and the way the restyled knee points; a straight leg asked
-to fold leans over its toes); the foot takes the input's world rotation
-(turned as restyled, with the stance) and the toes the input's local one. The result is
+kept, beside the input's ankle and the way the restyled knee points; either way a knee is a
+hinge that folds forward of its thigh, which decides where a straight leg's own direction is
+round-off); within 1 mm of full stretch the reach is eased ("soft IK"), so a knee never
+snaps as its target crosses it and the ankle falls short by at most 0.37 mm there; the
+foot takes the input's world rotation (turned as restyled, with the stance) and the toes
+the input's local one. The result is
 slerped with the restyled leg by w. Only rotations change, so bone lengths are kept by
 construction. The target follows the input's ankle at every frame (not a position frozen
 at touch-down), so a mistaken contact costs nothing worse than the input's own leg for
@@ -78,7 +81,7 @@ from scipy.signal import lfilter
 
 from . import rotations as rot
 from .errors import UserError
-from .humanoid import HUMANOID_BONES
+from .humanoid import FORWARD, HUMANOID_BONES
 from .skeleton import Skeleton
 
 LEGS = tuple(tuple(HUMANOID_BONES.index(f"{side}{b}") for b in ("UpperLeg", "LowerLeg", "Foot", "Toes"))
@@ -86,7 +89,23 @@ LEGS = tuple(tuple(HUMANOID_BONES.index(f"{side}{b}") for b in ("UpperLeg", "Low
 LEG_INDEX = np.array(LEGS)  # (2 sides, 4 bones): both legs are processed as one batch
 HIPS = HUMANOID_BONES.index("Hips")
 FLOOR_MARGIN = 1.0  # cm above the floor from which a foot in the air is eased up (``_soft_floor``)
-KNEE_LEAN = 2.0  # cm a straight leg's knee pole leans over the toes when it must fold (``solve_legs``)
+# cm along its thigh's forward axis a knee's own direction is leaned by where it is small
+# (``knee_direction``): a straight leg's own direction is round-off, and a fold that
+# followed it turned a knee 4 cm sideways in one frame (a held-out walk made youthful: a
+# pop 9.5x the input's largest jerk)
+KNEE_HINGE = 3.0
+# cm short of full stretch from which the leg IK eases the reach (``_soft_reach``): a knee's
+# height off its hip-ankle line grows as the square root of how far the ankle is inside
+# reach, so a planted leg held straight bent by 1.3 cm in the frame its target came
+# within reach (a standing VTuber's knee twitching, 4.5x the input's largest jerk). 1 mm
+# took most of what 1 cm did (held-out clips made youthful with a pop over 1.5x the
+# input's: 53 -> 17, 1 cm 12), and a leg the restyle left alone moves by 0.4 mm at most
+# (1 cm: 3.7 mm, a visibly bent knee)
+SOFT_REACH = 0.1
+# cm of lift a foot needs before the floor step bends its leg fully (``_keep_above_floor``):
+# a leg switched into the IK for a lift of a hundredth of a millimetre still moved its knee
+# by the difference of the two solutions
+FLOOR_LIFT_EASE = 0.5
 
 
 @dataclass(frozen=True)
@@ -284,19 +303,45 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
 
 
-def knee_direction(legs: np.ndarray) -> np.ndarray:
-    """Leg joint positions (..., 2, 4, 3) as ``leg_chain``'s -> where each knee points off
-    its own hip-ankle line (..., 2, 3): the plane it bends in, whatever the ankle's target."""
+def knee_direction(legs: np.ndarray, world: np.ndarray) -> np.ndarray:
+    """Leg joint positions and world rotations (..., 2, 4, 3) and (..., 2, 4, 4) as
+    ``leg_chain``'s -> the way each knee folds (..., 2, 3): where it points off its own
+    hip-ankle line (the plane it bends in, whatever the ankle's target), leaned forward of
+    its thigh where that is small. A knee is a hinge that folds forward of its thigh: in
+    the retargeted data the two agree to 0.2 degrees wherever the knee is 2 cm or more off
+    its line, in restyled legs bent 3 cm or more to 1-2 degrees (median), but a straight
+    or overstraightened leg's own direction is round-off (restyled knees within 1 cm of
+    their line: 25-54 degrees off the hinge, median). So a backward part is dropped and
+    KNEE_HINGE cm along the thigh's forward axis added, fading as the knee's own offset
+    grows past it (a clearly bent knee out of its hinge keeps its own plane)."""
     socket, knee, ankle = legs[..., 0, :], legs[..., 1, :], legs[..., 2, :]
     line = _unit(ankle - socket)
-    k = knee - socket
-    return k - np.sum(k * line, axis=-1, keepdims=True) * line
+
+    def off_line(v):
+        return v - np.sum(v * line, axis=-1, keepdims=True) * line
+
+    own = off_line(knee - socket)
+    ahead = _unit(off_line(rot.apply(world[..., 0, :], FORWARD)))
+    forward = np.sum(own * ahead, axis=-1, keepdims=True)
+    size = np.linalg.norm(own, axis=-1, keepdims=True)
+    return own + (np.maximum(-forward, 0.0) + KNEE_HINGE / (1.0 + (size / KNEE_HINGE) ** 2)) * ahead
+
+
+def _soft_reach(dist: np.ndarray, reach) -> np.ndarray:
+    """Hip-to-target distances -> the distances the leg IK solves for: unchanged up to
+    SOFT_REACH short of full ``reach``, then approaching it exponentially ("soft IK"), so
+    the knee moves smoothly as a target crosses full stretch. The ankle falls short of a
+    target there by at most SOFT_REACH / e (0.37 mm) at full stretch, more beyond it."""
+    soft = reach - SOFT_REACH
+    eased = soft + SOFT_REACH * (1.0 - np.exp(-np.maximum(dist - soft, 0.0) / SOFT_REACH))
+    return np.where(dist > soft, eased, dist)
 
 
 def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, ankle_target: np.ndarray,
                foot_world: np.ndarray, knee_towards: np.ndarray | None = None) -> np.ndarray:
     """Two-bone IK of both legs: local rotations (n, 2, 3, 4) of UpperLeg, LowerLeg and
-    Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches),
+    Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches,
+    eased within SOFT_REACH of full stretch),
     bend the knee towards ``knee_towards`` (n, 2, 3, a direction as ``knee_direction``'s;
     None: the way it points in ``rotations``) and give the foot the world rotation
     ``foot_world`` (n, 2, 4); the hips are those of ``rotations``; ``offsets`` as
@@ -306,7 +351,8 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     shin = np.linalg.norm(offsets[..., LEG_INDEX[:, 2], :], axis=-1)  # knee to ankle
     socket, knee = pos[:, :, 0], pos[:, :, 1]
     to_target = ankle_target - socket
-    dist = np.clip(np.linalg.norm(to_target, axis=-1), np.abs(thigh - shin) + 1e-6, thigh + shin - 1e-6)
+    dist = _soft_reach(np.linalg.norm(to_target, axis=-1), thigh + shin)
+    dist = np.clip(dist, np.abs(thigh - shin) + 1e-6, thigh + shin - 1e-6)
     axis = _unit(to_target)
     along = (thigh ** 2 - shin ** 2 + dist ** 2) / (2 * dist)  # law of cosines
     height = np.sqrt(np.maximum(thigh ** 2 - along ** 2, 0.0))
@@ -314,14 +360,10 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     # the target: a planted foot held far behind a leg that swung on put the restyled knee
     # on that line, and the bend flipped from front to back in one frame (36 cm, a held-out
     # walk). Where the ankle already is, the two are the same.
-    pole = knee_direction(pos) if knee_towards is None else knee_towards
     # A straight leg asked to bend has no direction of its own (round-off flipped a knee
-    # lifted off the floor by 5 cm and back in one frame): the pole leans over the toes,
-    # by as much as the leg must fold beyond where it is (nothing for a target where the
-    # ankle already is, so a leg left alone stays as it was).
-    fold = np.clip(np.linalg.norm(pos[:, :, 2] - socket, axis=-1) - dist, 0.0, 1.0)[..., None]
-    toes = rot.apply(foot_world, offsets[..., LEG_INDEX[:, 3], :])
-    pole = pole + KNEE_LEAN * fold * _unit(toes - np.sum(toes * axis, axis=-1, keepdims=True) * axis)
+    # lifted off the floor by 5 cm and back in one frame): the hinge in ``knee_direction``
+    # folds it forward of its thigh.
+    pole = knee_direction(pos, world) if knee_towards is None else knee_towards
     bend = _unit(pole - np.sum(pole * axis, axis=-1, keepdims=True) * axis)
     new_knee = socket + along[..., None] * axis + height[..., None] * bend
     new_ankle = socket + dist[..., None] * axis
@@ -599,7 +641,7 @@ def _lock_planted(rows: _Rows, at: np.ndarray) -> None:
         foot = rot.multiply(rot.exp_map(stance[:, :, 2:] * np.array([0.0, 1.0, 0.0])), foot)
         knee = None
     else:
-        knee = knee_direction(pos_in)  # the way the input's knee points
+        knee = knee_direction(pos_in, world_in)  # the way the input's knee points
     solved = solve_legs(rows.new_roots[at], outputs, offsets, ankle, foot, knee)
     target = np.concatenate([solved, inputs[:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
     weight = np.broadcast_to(rows.weights[at][:, :, None], target.shape[:-1])
@@ -612,7 +654,8 @@ def _keep_above_floor(rows: _Rows) -> None:
     2.7 cm at the 99th percentile on held-out clips without this step) the lowered
     pelvis. Where the ankle would go below its standing height over the floor, or the
     ball below the floor, the leg IK lifts the ankle (the foot keeps its rotation, the
-    knee its plane) until both clear it, through a soft edge (``_soft_floor``), never
+    knee its plane) until both clear it (a lift under FLOOR_LIFT_EASE only in part: up to
+    1.25 mm short), through a soft edge (``_soft_floor``), never
     higher than the input's own foot there (``own``: its ankles and balls). Lifting the
     ankle rather than pitching the foot up: a foot pointing down needs a large turn for a
     small lift (measured: an 8-degree pop in one frame). A fully locked foot (weight 1) is
@@ -642,7 +685,10 @@ def _keep_above_floor(rows: _Rows) -> None:
     target[..., 1] += up
     solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2])
     legs = LEG_INDEX[:, :3]
-    weight = np.broadcast_to(lift[:, :, None].astype(float), solved.shape[:-1])
+    # In by the lift needed, not at once: the solve moves a nearly straight knee even for
+    # a lift of nothing (the hinge, the soft reach), and a leg switched in and out jumped.
+    eased = np.where(lift, np.clip(up / FLOOR_LIFT_EASE, 0.0, 1.0), 0.0)
+    weight = np.broadcast_to(eased[:, :, None], solved.shape[:-1])
     rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import (FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, StanceOffset, _hysteresis,
-                                      leg_chain, solve_legs, solve_lock_jobs)
+                                      knee_direction, leg_chain, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
@@ -347,35 +347,109 @@ def test_the_ramp_never_looks_further_ahead_than_the_stream_delay():
     assert FootLock.for_stream(SK, delay=60).ramp == ContactSettings.ramp
 
 
-def solved_knees(thigh_degrees: np.ndarray, knee_degrees: float, lift: float) -> tuple[np.ndarray, np.ndarray]:
+def solved_knees(thigh_degrees: np.ndarray, knee_degrees, lift: float, sideways: float = 0.0,
+                 pole_from_leg: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The left leg swung forward by each of ``thigh_degrees`` about the hip (its knee bent
-    ``knee_degrees``), solved onto one fixed target: the ankle of the unswung, straight leg
-    raised ``lift`` cm, so the knee must fold -> (solved knee positions (n, 3), the socket)."""
+    ``knee_degrees``, one value or one per frame, below 0 past straight, and ``sideways``
+    degrees out of its hinge), solved onto one fixed target: the ankle of the unswung,
+    straight leg raised ``lift`` cm, so the knee must fold -> (solved knee positions (n, 3),
+    the socket, how far each ankle is from its target). ``pole_from_leg``: the knee's
+    direction handed in from the leg itself, as ``--feet input`` hands in the input's."""
     n = len(thigh_degrees)
+    bend = np.radians(np.broadcast_to(np.asarray(knee_degrees, float), (n,)))
     q = np.tile(rot.identity((J,)), (n, 1, 1))
     upper, lower = (HUMANOID_BONES.index(f"Left{b}") for b in ("UpperLeg", "LowerLeg"))
     q[:, upper] = rot.exp_map(np.stack([-np.radians(thigh_degrees), 0 * thigh_degrees, 0 * thigh_degrees], -1))
-    q[:, lower] = rot.exp_map(np.array([np.radians(knee_degrees), 0.0, 0.0]))
+    q[:, lower] = rot.exp_map(np.stack([bend, 0 * bend, np.radians(sideways) + 0 * bend], -1))
     roots = np.tile([0.0, 100.0, 0.0], (n, 1))
     straight, world, _ = leg_chain(roots[:1], np.tile(rot.identity((J,)), (1, 1, 1)), SK.offsets)
     target = np.repeat(straight[:, :, 2] + [0.0, lift, 0.0], n, axis=0)
+    own, own_world, _ = leg_chain(roots, q, SK.offsets)
+    pole = knee_direction(own, own_world) if pole_from_leg else None
     out = q.copy()
-    out[:, LEG_INDEX[:, :3]] = solve_legs(roots, q, SK.offsets, target, np.repeat(world[:, :, 2], n, axis=0))
+    out[:, LEG_INDEX[:, :3]] = solve_legs(roots, q, SK.offsets, target, np.repeat(world[:, :, 2], n, axis=0), pole)
     pos = leg_chain(roots, out, SK.offsets)[0]
-    np.testing.assert_allclose(pos[:, 0, 2], target[:, 0], atol=1e-6)  # the ankle is on its target
-    return pos[:, 0, 1], pos[0, 0, 0]
+    return pos[:, 0, 1], pos[0, 0, 0], np.linalg.norm(pos[:, 0, 2] - target[:, 0], axis=-1)
 
 
 def test_a_knee_asked_to_fold_keeps_its_side_as_the_leg_swings_past_its_target():
     """A planted foot held behind a leg that swung on: the restyled knee crossed the line
     from hip to target and the fold flipped from front to back in one frame (36 cm, a
     held-out walk). The knee folds the way it points off its own hip-ankle line; a straight
-    leg folds over its toes (+z)."""
+    leg folds forward of its thigh (+z)."""
     sweep = np.linspace(-5.0, 5.0, 201)  # the thigh from 5 degrees back to 5 forward, 0.05 apart
     for knee_degrees in (6.0, 0.0):  # a slightly bent knee, and a straight leg
-        knees, socket = solved_knees(sweep, knee_degrees, lift=6.0)
+        knees, socket, miss = solved_knees(sweep, knee_degrees, lift=6.0)
+        assert miss.max() < 1e-6  # the ankle is on its target
         assert (knees[:, 2] - socket[2] > 5.0).all()  # always in front
         assert np.linalg.norm(np.diff(knees, axis=0), axis=-1).max() < 0.5  # never a jump
+
+
+@pytest.mark.parametrize("pole_from_leg", [False, True])
+def test_a_knee_asked_to_fold_as_its_leg_straightens_past_straight_keeps_its_side(pole_from_leg):
+    """A leg that straightens at heel strike, a hair past straight and a little out of its
+    hinge (a restyle may do both), while the floor or the lock folds it by 2 mm: the knee's
+    own direction off its hip-ankle line then turns from forward through sideways to
+    backward, and a fold that followed it turned a knee 4 cm sideways and back in one frame
+    (a held-out walk made youthful, a pop 9.5x the input's largest jerk). A knee is a hinge
+    that folds forward of its thigh."""
+    knee_degrees = np.linspace(3.0, -1.0, 201)  # bent, straight, then a degree past it
+    knees, socket, miss = solved_knees(np.zeros(201), knee_degrees, lift=0.2, sideways=0.5,
+                                       pole_from_leg=pole_from_leg)
+    assert (knees[:, 2] - socket[2] > 1.0).all()  # always in front
+    assert np.linalg.norm(np.diff(knees, axis=0), axis=-1).max() < 0.1  # never a jump
+    assert miss.max() < 0.4  # within 2 mm of full stretch: the soft reach (the next test)
+
+
+def test_a_knee_moves_smoothly_as_its_target_crosses_full_stretch():
+    """Soft reach: a planted leg held straight whose target comes within reach at 0.1 mm a
+    frame (the pelvis settling). With a plain clamp at full stretch the knee jumped in the
+    first frames inside reach (its height grows as the square root of how far inside): a
+    standing figure's knee twitched, 4.5x the input's largest jerk. The ankle falls short of
+    its target by at most SOFT_REACH / e at full stretch and not at all from SOFT_REACH
+    inside it."""
+    from stylecast.motion.footlock import SOFT_REACH
+
+    n = 400
+    q = np.tile(rot.identity((J,)), (n, 1, 1))
+    q[:, HUMANOID_BONES.index("LeftLowerLeg")] = rot.exp_map(np.array([np.radians(2.0), 0.0, 0.0]))
+    roots = np.tile([0.0, 100.0, 0.0], (n, 1))
+    straight, world, _ = leg_chain(roots[:1], np.tile(rot.identity((J,)), (1, 1, 1)), SK.offsets)
+    inside = np.linspace(-1.0, 3.0, n)  # cm inside full stretch: beyond reach, then within it
+    target = np.repeat(straight[:, :, 2], n, axis=0) + inside[:, None, None] * [0.0, 1.0, 0.0]
+    out = q.copy()
+    out[:, LEG_INDEX[:, :3]] = solve_legs(roots, q, SK.offsets, target, np.repeat(world[:, :, 2], n, axis=0))
+    pos = leg_chain(roots, out, SK.offsets)[0]
+    knee = pos[:, 0, 1]
+    assert np.linalg.norm(np.diff(knee, axis=0), axis=-1).max() < 0.1  # never a jump
+    assert np.linalg.norm(np.diff(knee, 3, axis=0), axis=-1).max() < 0.01  # nor a kink
+    miss = np.linalg.norm(pos[:, 0, 2] - target[:, 0], axis=-1)
+    assert miss[inside >= 0].max() <= SOFT_REACH / np.e + 1e-6
+    assert miss[inside >= SOFT_REACH].max() < 1e-6
+
+
+def test_a_foot_that_comes_down_onto_the_floor_is_eased_into_the_lift():
+    """A foot held up in the air (not planted) that the restyle lowers onto the floor by
+    straightening its knee, a little out of its hinge: the floor step bends the leg in by
+    the lift it needs (FLOOR_LIFT_EASE). Switched in at once, the leg moved by the
+    difference of the two solutions in the first frame of a lift of nothing (0.22 cm here;
+    in held-out walks knee pops up to 6x the input's largest jerk)."""
+    n = 240
+    roots, q = stepping(1)
+    q, roots = np.repeat(q, n, axis=0), np.repeat(roots, n, axis=0)
+    upper, lower = (HUMANOID_BONES.index(f"Right{b}") for b in ("UpperLeg", "LowerLeg"))
+    q[:, upper] = rot.exp_map(np.array([-0.1, 0.0, 0.0]))
+    q[:, lower] = rot.exp_map(np.array([1.0, 0.0, 0.0]))  # the input's foot 19 cm up, still
+    out = q.copy()
+    bend = np.linspace(0.6, -0.02, n)  # the restyle straightens the knee, through the floor
+    out[:, lower] = rot.exp_map(np.stack([bend, 0 * bend, np.radians(3.0) + 0 * bend], -1))
+    lock = FootLock(SK)
+    assert not lock.push(roots, q)[:, 1].any()
+    new_roots, result = lock.apply(0, roots, q, out)
+    p_out, p_raw = leg_chain(new_roots, result, SK.offsets)[0], leg_chain(roots, out, SK.offsets)[0]
+    lifted = p_out[:, 1, 2, 1] - p_raw[:, 1, 2, 1] > 1e-6
+    assert 0 < lifted.argmax() and lifted.sum() > n // 2  # the lift begins part way through
+    assert np.linalg.norm(np.diff(p_out[:, 1, 1], axis=0), axis=-1).max() < 0.1  # the knee never jumps
 
 
 def test_the_lock_sets_in_and_lets_go_with_zero_slope():
