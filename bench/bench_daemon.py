@@ -243,7 +243,7 @@ def bench_presets(model, motion, n=8, seconds=8.0):
     table(f"Latency presets, {n} performers, {seconds:.0f} s each (loopback, ms)",
           ("setting", "hop", "final delay", "p50", "p99", "max", "late frames", "dropped ticks", "delay raises",
            "goal p99", "met"), rows)
-    workers = os.cpu_count() or 2  # one worker process per core (serve's own default is --workers 1)
+    workers = os.cpu_count() or 2  # one worker process per core, as serve's default (--workers 0)
     rows = []
     for latency, goal in (("default", 100.0), ("low", 35.0)):
         r = run_capacity_workers(n, workers, seconds, latency=latency)

@@ -73,7 +73,8 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
                         "(stance: keeps a style's stance); default auto: the model's own (the pair model input, "
                         "the multistyle model stance)")
     p.add_argument("--workers", type=int, default=None,
-                   help="worker processes to spread the performers over, each with its own model (default 1)")
+                   help="worker processes to spread the performers over, each with its own model "
+                        "(default 0: one per core, at most one per performer)")
     p.add_argument("--device", default=None,
                    help="where the model runs: auto (CUDA when present, the default), cpu, cuda or cuda:N")
 
@@ -103,7 +104,7 @@ def cmd_serve(args) -> int:
 
     _setup_logging()
     config = _config(args)
-    if config.workers > 1 and len(config.source) > 1:
+    if config.processes > 1:
         return run_workers(config)
     return run_daemon(config)
 

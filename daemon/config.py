@@ -49,7 +49,7 @@ class DaemonConfig:
     bundled: bool = True
     duration: float = 0.0  # seconds; 0 = until stopped
     device: str = "auto"  # where the model runs: auto (CUDA when present), cpu, cuda[:N]
-    workers: int = 1  # processes the performers are spread over (daemon.workers)
+    workers: int = 0  # processes the performers are spread over (daemon.workers); 0 = one per core
     feet: str = "auto"  # where planted feet go (motion.footlock.FEET): auto (the model's), input, stance
 
     def validate(self) -> "DaemonConfig":
@@ -74,8 +74,8 @@ class DaemonConfig:
         from stylecast.motion.footlock import check_feet
 
         check_feet(self.feet)
-        if not 1 <= self.workers <= 256:
-            raise UserError(f"--workers {self.workers} is out of range; use 1 to 256 processes")
+        if not 0 <= self.workers <= 256:
+            raise UserError(f"--workers {self.workers} is out of range; use 1 to 256 processes, or 0 for one per core")
         if self.style:
             from stylecast.models.styles import parse_mix
 
@@ -84,6 +84,15 @@ class DaemonConfig:
 
         self.device = check_device_name(self.device)
         return self
+
+    @property
+    def processes(self) -> int:
+        """Worker processes ``serve`` runs: ``workers`` (0: one per core this process may
+        use), never more than there are performers."""
+        import os
+
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        return max(1, min(self.workers or cores, len(self.source)))
 
     @property
     def crossfade_frames(self) -> int:

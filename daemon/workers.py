@@ -133,7 +133,7 @@ def run_workers(config: DaemonConfig, stop: threading.Event | None = None, on_st
     workers = []
     control = None
     try:
-        parts = split(len(config.source), config.workers)
+        parts = split(len(config.source), config.processes)
         for index, part in enumerate(parts):
             sub = dataclasses.replace(config, source=config.source[part.start:part.stop], control="off")
             workers.append(_Worker(ctx, sub, part.start, (index, len(parts))))

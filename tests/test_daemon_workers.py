@@ -17,6 +17,7 @@ from stylecast.daemon.engine import Daemon, grid_start, stagger_phase, worker_of
 from stylecast.daemon.restylers import IdentityRestyler
 from stylecast.daemon.workers import merge_snapshots, run_workers, split
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
+from stylecast.motion.errors import UserError
 from stylecast.motion.bvh import write_bvh
 from stylecast.motion.clock import OUTPUT_FPS, RealClock
 
@@ -29,6 +30,19 @@ def test_split_is_contiguous_balanced_and_never_empty():
     assert split(3, 8) == [range(0, 1), range(1, 2), range(2, 3)]
     parts = split(64, 2)
     assert [len(p) for p in parts] == [32, 32] and parts[0].stop == parts[1].start
+
+
+def test_serve_runs_one_process_per_core_unless_told_and_never_more_than_performers():
+    import os
+
+    cores = len(os.sched_getaffinity(0))
+    sources = [f"bvh:///clip{k}.bvh" for k in range(3)]
+    assert DaemonConfig(source=sources).validate().processes == min(cores, 3)  # the default, 0
+    assert DaemonConfig(source=sources, workers=1).validate().processes == 1
+    assert DaemonConfig(source=sources, workers=8).validate().processes == 3
+    assert DaemonConfig(source=sources[:1]).validate().processes == 1
+    with pytest.raises(UserError, match="one per core"):
+        DaemonConfig(source=sources, workers=-1).validate()
 
 
 def model_call_times(hop: int, performers: int, workers: int) -> list[set[float]]:
