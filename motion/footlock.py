@@ -18,11 +18,12 @@ Lock (``FootLock.apply``, per output frame t): the leg weight w(t) rises to 1 ov
 ``ramp`` frames before a contact and falls over ``ramp`` frames after it (a dilation of
 the contacts by a smoothstepped triangle, which looks ``ramp`` frames ahead: the daemon
 has ``delay`` frames of input beyond the frame it renders, so ``ramp`` <= delay). Where w > 0 the
-hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle and the
-knee bends the way the input's knee points off its own hip-ankle line (or, with the stance
-kept, beside the input's ankle and the way the restyled knee points; either way a knee is a
-hinge that folds forward of its thigh, which decides where a straight leg's own direction is
-round-off); within 1 mm of full stretch the reach is eased ("soft IK"), so a knee never
+hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle (or, with
+the stance kept, beside it) and the knee bends the way the restyled knee points off its own
+hip-ankle line (a knee is a hinge that folds forward of its thigh, which decides where a
+straight leg's own direction is round-off; the input's knee plane, which the lock took
+before, undid a restyle's turned knees: 2.7 points less judged exhausted on the panel's
+mean, 0.3 less action kept); within 1 mm of full stretch the reach is eased ("soft IK"), so a knee never
 snaps as its target crosses it and the ankle falls short by at most 0.37 mm there; the
 foot takes the input's world rotation (turned as restyled, with the stance) and the toes
 the input's local one. The result is
@@ -338,14 +339,12 @@ def _soft_reach(dist: np.ndarray, reach) -> np.ndarray:
 
 
 def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, ankle_target: np.ndarray,
-               foot_world: np.ndarray, knee_towards: np.ndarray | None = None) -> np.ndarray:
+               foot_world: np.ndarray) -> np.ndarray:
     """Two-bone IK of both legs: local rotations (n, 2, 3, 4) of UpperLeg, LowerLeg and
     Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches,
-    eased within SOFT_REACH of full stretch),
-    bend the knee towards ``knee_towards`` (n, 2, 3, a direction as ``knee_direction``'s;
-    None: the way it points in ``rotations``) and give the foot the world rotation
-    ``foot_world`` (n, 2, 4); the hips are those of ``rotations``; ``offsets`` as
-    ``leg_chain``'s."""
+    eased within SOFT_REACH of full stretch), bend each knee the way it folds in
+    ``rotations`` (``knee_direction``) and give the foot the world rotation ``foot_world``
+    (n, 2, 4); the hips are those of ``rotations``; ``offsets`` as ``leg_chain``'s."""
     pos, world, hips = leg_chain(roots, rotations, offsets)
     thigh = np.linalg.norm(offsets[..., LEG_INDEX[:, 1], :], axis=-1)  # (2,) or (n, 2): socket to knee
     shin = np.linalg.norm(offsets[..., LEG_INDEX[:, 2], :], axis=-1)  # knee to ankle
@@ -363,7 +362,7 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     # A straight leg asked to bend has no direction of its own (round-off flipped a knee
     # lifted off the floor by 5 cm and back in one frame): the hinge in ``knee_direction``
     # folds it forward of its thigh.
-    pole = knee_direction(pos, world) if knee_towards is None else knee_towards
+    pole = knee_direction(pos, world)
     bend = _unit(pole - np.sum(pole * axis, axis=-1, keepdims=True) * axis)
     new_knee = socket + along[..., None] * axis + height[..., None] * bend
     new_ankle = socket + dist[..., None] * axis
@@ -628,21 +627,18 @@ def _advance(rows: _Rows) -> None:
 
 def _lock_planted(rows: _Rows, at: np.ndarray) -> None:
     """Rows ``at``, where a lock weight is above 0: the leg IK onto the input's ankle (or
-    beside it, with the stance), the foot turned as the input's, slerped with the restyled
-    leg by the weight."""
+    beside it, with the stance), the foot turned as the input's, the knee in its restyled
+    plane, slerped with the restyled leg by the weight."""
     if not len(at):
         return
     offsets, inputs, outputs = rows.offsets_of(at), rows.inputs[at], rows.outputs[at]
     pos_in, world_in, _ = leg_chain(rows.roots[at], inputs, offsets)
     ankle, foot = pos_in[:, :, 2], world_in[:, :, 2]  # the input's own
-    if rows.with_stance[at[0]]:  # beside them, turned as restyled, the knee in its restyled plane
+    if rows.with_stance[at[0]]:  # beside them, turned as restyled
         stance = rows.stance[at]
         ankle = ankle + stance[:, :, :2] @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
         foot = rot.multiply(rot.exp_map(stance[:, :, 2:] * np.array([0.0, 1.0, 0.0])), foot)
-        knee = None
-    else:
-        knee = knee_direction(pos_in, world_in)  # the way the input's knee points
-    solved = solve_legs(rows.new_roots[at], outputs, offsets, ankle, foot, knee)
+    solved = solve_legs(rows.new_roots[at], outputs, offsets, ankle, foot)
     target = np.concatenate([solved, inputs[:, LEG_INDEX[:, 3:]]], axis=2)  # toes as the input's
     weight = np.broadcast_to(rows.weights[at][:, :, None], target.shape[:-1])
     rows.result[at[:, None, None], LEG_INDEX[None]] = rot.slerp(outputs[:, LEG_INDEX], target, weight)
