@@ -130,7 +130,7 @@ class ContactSettings:
     pelvis_tau: float = 8.0
     pelvis_cap: float = 12.0
     # Stance: the most a planted foot stands beside the input's (cm; 0: on the input's
-    # own ankle, the knee bent in the input's plane) and how fast the offset may move while
+    # own ankle) and how fast the offset may move while
     # the foot is locked (cm/frame; a planted input foot moves 0.03-0.08, so this adds at
     # most a third to its slide).
     stance_cap: float = 0.0
@@ -148,9 +148,10 @@ class ContactSettings:
     turn_sure: float = 6.0
 
 
-# Where planted feet go (``--feet``). "input": on the input's own ankles, the knees bent in
-# the input's plane; a pair model keeps it unless its checkpoint names another. "stance":
-# beside them, where the restyled legs stand, turned and bent as restyled; the multi-style
+# Where planted feet go (``--feet``). "input": on the input's own ankles, turned as the
+# input's; a pair model keeps it unless its checkpoint names another. "stance": beside
+# them, where the restyled legs stand, turned as restyled (the knees bend as restyled in
+# both); the multi-style
 # model reads most as its targets so (80.1 % on average over six against 55.7 %). For the
 # pair default it reads better (77.3 % against 74.7 %) and pops less, but while planted it
 # creeps 0.011-0.012 cm a frame in the standing actions against the input's 0.005 (2.2-2.6x)
