@@ -258,6 +258,25 @@ def test_the_pelvis_lowers_so_a_restyled_knee_bend_stands_on_the_planted_feet():
     assert np.abs(np.diff(new_roots[:, 1], 2)).max() < 0.1 * gap
 
 
+def test_on_the_input_ankles_the_hips_follow_a_restyled_bend_within_a_fifth_of_a_second():
+    """The restyle bends the standing legs from frame 60 on: the hips come down by 90 % of
+    the gap within 12 frames (pelvis_tau 2: 9 frames), so the knees bend step by step as
+    restyled (with pelvis_tau 8, 41 frames, the pair default read walks 54 % exhausted, with
+    2 78 %)."""
+    roots, q = stepping(180)
+    standing = np.tile(q[:1], (180, 1, 1))
+    roots = np.tile(roots[:1], (180, 1))
+    out_in = standing.copy()
+    out_in[60:] = crouched(standing[60:])
+    p_in, p_raw = leg_chain(roots, standing, SK.offsets)[0], leg_chain(roots, out_in, SK.offsets)[0]
+    gap = float(np.mean(p_raw[-1, :, 2, 1] - p_in[-1, :, 2, 1]))
+    lock = FootLock(SK, settings=ON_INPUT_ANKLES)
+    lock.push(roots, standing)
+    new_roots, _ = lock.apply(0, roots, standing, out_in)
+    drop = roots[:, 1] - new_roots[:, 1]
+    assert np.abs(drop[:60]).max() < 1e-9 and drop[60 + 12] > 0.9 * gap
+
+
 def test_an_unchanged_output_leaves_the_pelvis_and_legs_alone():
     roots, q = stepping(180)
     lock = FootLock(SK)
