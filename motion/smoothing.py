@@ -29,14 +29,17 @@ from . import rotations as rot
 CORRECTION_TAU = 2.0  # frames; measured: hop 4 jerk ratio 2.0 -> 1.05 (see models/checkpoints/MODEL_CARD.md)
 
 
+def triple_pole(tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """lfilter's (b, a) of three cascaded one-pole low-passes of time constant ``tau``
+    frames, unity gain at rest: (gain / (1 - pole z^-1))^3 as one recursion."""
+    pole = np.exp(-1.0 / tau) if tau > 0 else 0.0
+    return np.array([(1.0 - pole) ** 3]), np.array([1.0, -3 * pole, 3 * pole ** 2, -pole ** 3])
+
+
 class CorrectionFilter:
     def __init__(self, num_bones: int, tau: float = CORRECTION_TAU):
         self.tau = float(tau)
-        pole = np.exp(-1.0 / self.tau) if self.tau > 0 else 0.0
-        gain = 1.0 - pole
-        # (gain / (1 - pole z^-1))^3 as one recursion
-        self._b = np.array([gain ** 3])
-        self._a = np.array([1.0, -3 * pole, 3 * pole ** 2, -pole ** 3])
+        self._b, self._a = triple_pole(self.tau)
         self._state = np.zeros((3, num_bones * 3))
 
     def apply(self, inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
