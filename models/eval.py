@@ -134,7 +134,7 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
     out = [Variant("input", None, "the input itself"),
            Variant("posture", posture.restyle_words, "mean pose difference of the styles added to the input")]
     for name, note in ((SHIPPED_V1, "first shipped model (free full-rate correction, no foot lock in training)"),
-                       (SHIPPED_V2, "the previous default (smooth correction, no action-content loss)"),
+                       (SHIPPED_V2, "the default two releases back (smooth correction, no action-content loss)"),
                        (BASELINE, "Adult2Child temporal-coherence baseline")):
         r = _optional_model(name, log)  # shipped pair models, beside a pair model of the same styles
         if r is not None and r.styles == proposed.styles and r.path != proposed.path:

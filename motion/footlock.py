@@ -129,8 +129,8 @@ class ContactSettings:
     # Pelvis height: the low-pass time constant (frames; a triple pole, so the hips settle
     # over ~3 tau) and the most the hips move (cm). 0 tau: no adjustment. Measured on
     # held-out clips with the judge panel (models/checkpoints/MODEL_CARD.md): on the input's
-    # ankles, 2 frames let the hips carry the restyled legs' bend step by step (the pair
-    # default: 71.1 -> 81.9 % judged exhausted on the worst judge, walks 54 -> 78 %; timing
+    # ankles, 2 frames let the hips carry the restyled legs' bend step by step (the previous
+    # pair default: 71.1 -> 81.9 % judged exhausted on the worst judge, walks 54 -> 78 %; timing
     # sync 0.818 -> 0.815, pops and slide unchanged); 1 frame read 83.0 % but popped (2.6x
     # the input's largest jerk). The stance keeps 8 (``FEET``).
     pelvis_tau: float = 2.0
@@ -165,9 +165,9 @@ class ContactSettings:
 # Where planted feet go (``--feet``). "input": on the input's own ankles, turned as the
 # input's; a pair model keeps it unless its checkpoint names another. "stance": beside
 # them, where the restyled legs stand, turned as restyled (the knees bend as restyled in
-# both). The multi-style model reads most as its targets so (80.1 % on average over six
-# against 55.7 %). For the pair default "input" reads better since its hips follow within
-# 2 frames (82.4 % against 74.4 % on the judges' mean, action 88.5 against 84.1 %), and
+# both). The multi-style model reads most as its targets so (78.7 % on the judges' mean
+# over six against 57.8 %). For the pair default "input" reads better since its hips follow
+# within 2 frames (88.1 % against 75.4 % on the judges' mean, action 89.5 against 86.8 %), and
 # while planted the stance creeps 0.011-0.012 cm a frame in the standing actions against
 # the input's 0.005 (2.2-2.6x). The stance's hips settle slower (8 frames): with 2 the
 # multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %) and popped more in

@@ -261,7 +261,7 @@ def test_the_pelvis_lowers_so_a_restyled_knee_bend_stands_on_the_planted_feet():
 def test_on_the_input_ankles_the_hips_follow_a_restyled_bend_within_a_fifth_of_a_second():
     """The restyle bends the standing legs from frame 60 on: the hips come down by 90 % of
     the gap within 12 frames (pelvis_tau 2: 9 frames), so the knees bend step by step as
-    restyled (with pelvis_tau 8, 41 frames, the pair default read walks 54 % exhausted, with
+    restyled (with pelvis_tau 8, 41 frames, the previous pair default read walks 54 % exhausted, with
     2 78 %)."""
     roots, q = stepping(180)
     standing = np.tile(q[:1], (180, 1, 1))
