@@ -114,7 +114,7 @@ def test_a_restyled_stance_is_kept_and_a_planted_foot_only_creeps_into_a_new_one
     roots, q = stepping(240)
     standing = np.tile(q[:1], (240, 1, 1))  # both feet planted all the time
     roots = np.tile(roots[:1], (240, 1))
-    angle = np.where(np.arange(240) < 120, 8.0, 0.0)  # wide for two seconds, then narrow again
+    angle = np.where(np.arange(240) < 120, 4.0, 0.0)  # wide for two seconds, then narrow again
     out_in = spread(standing, angle)
     p_in, _, _ = leg_chain(roots, standing, SK.offsets)
     p_raw, _, _ = leg_chain(roots, out_in, SK.offsets)
@@ -122,7 +122,8 @@ def test_a_restyled_stance_is_kept_and_a_planted_foot_only_creeps_into_a_new_one
     def width(p):
         return np.abs(p[:, 0, 2, 0] - p[:, 1, 2, 0])
 
-    assert (width(p_raw) - width(p_in))[:120].min() > 15.0  # the restyle spreads the feet
+    # the restyle spreads the feet, each within the stance's cap
+    assert 10.0 < (width(p_raw) - width(p_in))[:120].min() < 2 * STANCE.stance_cap
     results = {}
     for name, settings in (("stance", STANCE), ("input", ON_INPUT_ANKLES)):
         lock = FootLock(SK, settings=settings)
@@ -136,6 +137,23 @@ def test_a_restyled_stance_is_kept_and_a_planted_foot_only_creeps_into_a_new_one
     np.testing.assert_allclose(lost[1:], width(p_in)[1:], atol=0.05)  # locked on the input's ankles: undone
     # When the restyle narrows the stance again the planted feet creep, 0.6 cm a second.
     assert kept[-1] < kept[119] - 2 * 120 * 0.01 + 0.05
+
+
+def test_a_planted_foot_stands_no_further_than_the_stance_cap_beside_the_input():
+    """An offset is taken as the lock blends in, while the restyled foot still swings, so a
+    large one is mostly swing: capped at 8 cm the multistyle model's knees popped 2.0-3.1x
+    the input's largest jerk in its worst clips, against 3.1-4.0x at 15 cm."""
+    roots, q = stepping(120)
+    standing = np.tile(q[:1], (120, 1, 1))
+    roots = np.tile(roots[:1], (120, 1))
+    out_in = spread(standing, np.full(120, 12.0))
+    p_in, p_raw = leg_chain(roots, standing, SK.offsets)[0], leg_chain(roots, out_in, SK.offsets)[0]
+    lock = FootLock(SK, settings=STANCE)
+    lock.push(roots, standing)
+    new_roots, out = lock.apply(0, roots, standing, out_in)
+    offset = np.linalg.norm((leg_chain(new_roots, out, SK.offsets)[0] - p_in)[:, :, 2][..., [0, 2]], axis=-1)
+    assert np.linalg.norm((p_raw - p_in)[:, :, 2][..., [0, 2]], axis=-1).min() > STANCE.stance_cap + 5.0
+    assert np.abs(offset[1:] - STANCE.stance_cap).max() < 0.05  # as far as allowed, and no further
 
 
 def test_streaming_a_frame_at_a_time_equals_the_whole_clip():
@@ -620,8 +638,9 @@ def test_a_planted_leg_bends_its_knee_the_way_the_restyle_turned_it(settings):
     turned = np.degrees(np.arccos(np.clip(np.sum(plain * wanted, -1), -1, 1)))[1:]
     assert turned.min() > 15.0  # the twist really turns the knees
     assert angle.max() < 3.0  # and the locked legs keep it (while it comes down, the plane moves with the hip)
-    if settings is STANCE:  # once the pelvis has settled, exactly; on the input's ankles, about
-        assert angle[60:].max() < 0.1  # their own hip-ankle line, not the restyle's (1.75 degrees here)
+    if settings is STANCE:  # once the pelvis has settled, closely (the ankle stands at the cap, 8 cm
+        assert angle[60:].max() < 1.0  # beside the input's, short of the restyled one: 0.74 degrees); on
+        # the input's ankles, about their own hip-ankle line, not the restyle's (1.75 degrees here)
 
 
 def test_a_stance_that_fades_in_with_the_stream_is_taken_then_kept():
@@ -630,7 +649,7 @@ def test_a_stance_that_fades_in_with_the_stream_is_taken_then_kept():
     roots, q = stepping(240)
     standing = np.tile(q[:1], (240, 1, 1))
     roots = np.tile(roots[:1], (240, 1))
-    angle = np.clip((np.arange(240) - 60) / 30, 0.0, 1.0) * 8.0  # the first word, then a fade ending at 90
+    angle = np.clip((np.arange(240) - 60) / 30, 0.0, 1.0) * 4.0  # the first word, then a fade ending at 90
     out_in = spread(standing, angle)
 
     def width(p):
@@ -646,4 +665,4 @@ def test_a_stance_that_fades_in_with_the_stream_is_taken_then_kept():
         got[fade_in] = width(p)
         assert horizontal_speed(p[92:, :, 2]).max() < STANCE.stance_rate + 1e-6  # still once settled
     np.testing.assert_allclose(got[91][91:], wanted[91:], atol=0.05)  # the faded-in stance is taken
-    assert got[0][-1] < wanted[-1] - 10.0  # without the settling it would only have crept towards it
+    assert got[0][-1] < wanted[-1] - 5.0  # without the settling it would only have crept towards it
