@@ -165,7 +165,7 @@ class ContactSettings:
 # Where planted feet go (``--feet``). "input": on the input's own ankles, turned as the
 # input's; a pair model keeps it unless its checkpoint names another. "stance": beside
 # them, where the restyled legs stand, turned as restyled (the knees bend as restyled in
-# both). The multi-style model reads most as its targets so (78.7 % on the judges' mean
+# both). The multi-style model reads most as its targets so (78.5 % on the judges' mean
 # over six against 57.8 %). For the pair default "input" reads better since its hips follow
 # within 2 frames (88.1 % against 75.4 % on the judges' mean, action 89.5 against 86.8 %), and
 # while planted the stance creeps 0.011-0.012 cm a frame in the standing actions against
@@ -177,7 +177,7 @@ class ContactSettings:
 # The stance's cap: a foot's offset is taken where its lock starts to blend in, ``ramp``
 # frames before touch-down, while the restyled foot still swings, so a large one is mostly
 # swing: with 15 cm the multistyle model's knees popped 3.1-4.0x the input's largest jerk in
-# active, feminine, masculine and youthful walks and runs; 8 cm: 2.0-3.1x, every style read
+# active, feminine, masculine and youthful walks and runs; 8 cm: 1.95-3.11x, every style read
 # as its target within a point of 15 cm's (5 cm: feminine -2.0). Following the restyled foot
 # until full contact instead popped more (6.6x, a feminine run): the offset then stops dead.
 FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=8.0, pelvis_tau=8.0)}
