@@ -203,19 +203,20 @@ class _TriplePole:
 
     def __init__(self, tau: float):
         self._b, self._a = triple_pole(tau)
-        self._state = np.zeros(3)
+        self._coefficients = (float(self._b[0]), *self._a[1:].tolist())  # b0, a1, a2, a3 for ``step``
+        self._state = [0.0, 0.0, 0.0]
 
     def run(self, x: np.ndarray) -> np.ndarray:
-        y, self._state = lfilter(self._b, self._a, x, zi=self._state)
+        y, state = lfilter(self._b, self._a, x, zi=np.asarray(self._state))
+        self._state = state.tolist()
         return y
 
     def step(self, x: float) -> float:
         """``run`` of one value on Python floats (the daemon's case; scipy's lfilter costs
         ~50 us a call): the same recursion, in lfilter's transposed direct form II."""
-        z0, z1, z2 = self._state.tolist()
-        (b0,), (_, a1, a2, a3) = self._b.tolist(), self._a.tolist()
+        (z0, z1, z2), (b0, a1, a2, a3) = self._state, self._coefficients
         y = b0 * x + z0
-        self._state = np.array([z1 - a1 * y, z2 - a2 * y, -a3 * y])
+        self._state = [z1 - a1 * y, z2 - a2 * y, -a3 * y]
         return y
 
 
@@ -227,9 +228,10 @@ class PelvisHeight:
     Two low-passes of the held gap run side by side: ``tau`` while a foot is always down
     (standing, walking) and ``flight_tau`` once the body has left the floor within the last
     ``flight_memory`` frames (a run, a jump), crossfaded by a weight that is itself
-    low-passed over ``flight_tau`` so the switch never steps."""
+    low-passed over ``flight_tau`` so the switch never steps. Without a ``flight_memory``
+    (or with ``flight_tau`` = ``tau``) it is the one low-pass."""
 
-    def __init__(self, tau: float, cap: float, flight_tau: float | None = None, flight_memory: int = 30):
+    def __init__(self, tau: float, cap: float, flight_tau: float | None = None, flight_memory: int = 0):
         self.tau, self.cap = float(tau), float(cap)
         self.flight_tau = self.tau if flight_tau is None else float(flight_tau)
         self.flight_memory = int(flight_memory)
