@@ -72,6 +72,10 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
                    help="planted feet on the input's own ankles (input) or where the restyled legs stand "
                         "(stance: keeps a style's stance); default auto: the model's own (the pair model input, "
                         "the multistyle model stance)")
+    p.add_argument("--pace", default=None, metavar="style|input",
+                   help="the avatar covers ground at the target style's pace (style, the default: it falls "
+                        "behind a performer who walks on, and walking back takes it back) or at the "
+                        "performer's own (input: it stays where the performer is)")
     p.add_argument("--workers", type=int, default=None,
                    help="worker processes to spread the performers over, each with its own model "
                         "(default 0: one per core, at most one per performer)")
@@ -81,7 +85,7 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
 
 _CONFIG_KEYS = ("source", "out", "out_input", "record", "latency", "hop", "delay", "decay", "crossfade", "intensity",
                 "bypass", "model", "direction", "style", "control", "allow", "status_interval", "bundled", "duration",
-                "device", "workers", "feet")
+                "device", "workers", "feet", "pace")
 
 
 def _config(args):

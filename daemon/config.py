@@ -51,6 +51,7 @@ class DaemonConfig:
     device: str = "auto"  # where the model runs: auto (CUDA when present), cpu, cuda[:N]
     workers: int = 0  # processes the performers are spread over (daemon.workers); 0 = one per core
     feet: str = "auto"  # where planted feet go (motion.footlock.FEET): auto (the model's), input, stance
+    pace: str = "style"  # whose pace the avatar covers ground at (motion.footlock.PACE_CHOICES)
 
     def validate(self) -> "DaemonConfig":
         from .latency import LATENCY_PRESETS
@@ -71,9 +72,10 @@ class DaemonConfig:
             raise UserError(f"--crossfade {self.crossfade} is out of range; use 0 to 60 seconds")
         if self.status_interval <= 0:
             raise UserError("--status-interval must be positive")
-        from stylecast.motion.footlock import check_feet
+        from stylecast.motion.footlock import check_feet, check_pace
 
         check_feet(self.feet)
+        check_pace(self.pace)
         if not 0 <= self.workers <= 256:
             raise UserError(f"--workers {self.workers} is out of range; use 1 to 256 processes, or 0 for one per core")
         if self.style:

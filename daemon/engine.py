@@ -39,7 +39,7 @@ import threading
 
 from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import feet_for
+from stylecast.motion.footlock import feet_for, pace_of
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings
 
@@ -196,7 +196,7 @@ class Daemon:
                 raise UserError(f"source {source.performer!r} does not deliver the humanoid skeleton")
             session = Session(k, source, self.settings, skeleton,
                               phase=stagger_phase(self.settings.hop, k, len(sources)),
-                              contacts=feet_for(self.config.feet, self.worker.restyler))
+                              contacts=feet_for(self.config.feet, self.worker.restyler, self.config.pace))
             session.intensity = self.config.intensity
             session.set_bypass(self.config.bypass)
             self.sessions.append(session)
@@ -379,6 +379,7 @@ class Daemon:
                     s.set_style(None)
             self.worker.set_restyler(model)
             self.style = style_label(model)
+            self._set_pace(self.sessions)
             log.info("model %s is live", self.style)
         if self.remote is not None:
             self._serve_remote()
@@ -422,6 +423,7 @@ class Daemon:
         model = with_direction(self.worker.restyler, direction)
         self.worker.set_restyler(model)
         self.style = style_label(model)
+        self._set_pace(self.sessions)
 
     def set_style(self, pairs, sessions) -> None:
         """/stylecast/style and /stylecast/mix: crossfade ``sessions`` to the mix of
@@ -430,6 +432,13 @@ class Daemon:
         weights, label = style_mix(model, pairs)
         for s in sessions:
             s.set_style(weights, label, own=model.weights)
+        self._set_pace(sessions)
+
+    def _set_pace(self, sessions) -> None:
+        """The pace each of ``sessions`` covers ground at, after a new model, direction or
+        style (``--pace``; ``footlock.Pace`` moves the body's speed to it smoothly)."""
+        for s in sessions:
+            s.feet.pace.set_points(pace_of(self.worker.restyler, self.config.pace, s.style_target))
 
     def _control_error(self, message: str) -> None:
         # Counted always, logged rarely: a sender repeating a bad command, or a flood of

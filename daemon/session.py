@@ -37,7 +37,7 @@ from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, solve_
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
-from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, render_planned
+from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, planned_mix, render_planned
 
 from .status import LatencyWindow
 
@@ -81,7 +81,8 @@ def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> Non
     blended = render_planned([(s.blender, p.runs, inputs[k:k + 1]) for k, (s, p) in enumerate(zip(sessions, pending))])
     smoothed = filter_frames([s.smoothing for s in sessions], inputs, np.concatenate(blended))
     for k, (session, frame) in enumerate(zip(sessions, pending)):
-        frame.lock = session.feet.plan(frame.index, frame.input_root, frame.input_rotations[None], smoothed[k:k + 1])
+        frame.lock = session.feet.plan(frame.index, frame.input_root, frame.input_rotations[None], smoothed[k:k + 1],
+                                       planned_mix(frame.runs, 1))
     solve_lock_jobs([frame.lock for frame in pending])
 
 
@@ -205,6 +206,11 @@ class Session:
         self._style_to = np.asarray(weights, np.float64)
         self._style_progress = 0.0
         self.style_label = label
+
+    @property
+    def style_target(self) -> np.ndarray | None:
+        """The mix this performer chose, where its crossfade goes (None: the model's own)."""
+        return self._style_to
 
     def style_weights(self) -> np.ndarray | None:
         """The mix words are restyled with now (None: the model's own)."""

@@ -99,6 +99,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--feet", default="auto", metavar="auto|input|stance",
                    help="planted feet on the input's own ankles (input) or where the restyled legs stand "
                         "(stance); default auto: the model's own, as `serve --feet`")
+    p.add_argument("--pace", default="style", metavar="style|input",
+                   help="cover ground at the target style's pace (style, the default: an exhausted run is "
+                        "slower, its strides shorter) or at the input's own (input: the root's path passes "
+                        "through), as `serve --pace`")
     p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
     p.add_argument("--device", default="auto", help="where the model runs: auto (CUDA when present), cpu or cuda[:N]")
     p.set_defaults(func=run_restyle)
@@ -249,7 +253,8 @@ def run_restyle(args) -> int:
 
     info = restyle_file(args.input, args.output, model=args.model, direction=args.direction,
                         intensity=args.intensity, hop=args.hop or DEFAULT_HOP, fps=args.fps, map_file=args.map,
-                        live=args.live, device=args.device, style=args.style, feet=args.feet)
+                        live=args.live, device=args.device, style=args.style, feet=args.feet,
+                        pace=args.pace)
     print(f"wrote {args.output}: {info['joints']} joints, {info['frames']} frames at {info['fps']:g} fps "
           f"({info['model']}{', ' + info['direction'] if info['direction'] else ''}: {info['from']} -> {info['to']})")
     return 0

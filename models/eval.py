@@ -14,7 +14,8 @@ mean pose difference between the two styles added to the input: the cheapest pos
 "style"), the first shipped model (``normal2exhausted-v1``, the figure to beat), the
 coherence baseline, the model under test, and any ``--variant NAME=PATH``; and the model
 under test without each stage around it (the foot lock, the correction low-pass, the
-pelvis height), to show what each stage does, and with the other ``--feet`` than its own.
+pelvis height, the style's pace), to show what each stage does, and with the other
+``--feet`` than its own.
 
 Measures (``metrics.py`` for the arithmetic, ``judges.py`` for the classifiers), each
 overall and per action:
@@ -33,7 +34,10 @@ overall and per action:
 * planted-foot slide: horizontal foot speed where the input's foot is planted (output /
   input);
 * timing sync (correlation of body speed, input vs output);
-* seam ratio (METHOD.md) of the blended output, and of plain 60-frame words for contrast.
+* seam ratio (METHOD.md) of the blended output, and of plain 60-frame words for contrast;
+* the travel ceiling (``travel_ceiling``): real target-style clips judged with their root
+  path covered at the source clips' speed, what a restyle that keeps the input's travel
+  (as stylecast's does) could read at best.
 """
 
 from __future__ import annotations
@@ -157,13 +161,17 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
     out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
                        "the model under test without the correction low-pass", smooth=False, contacts=own))
     out.append(Variant("proposed-fixed-pelvis", proposed.restyle_words,
-                       "the model under test with the root passed through (no pelvis height)",
+                       "the model under test with the root's height passed through (no pelvis height)",
                        contacts=replace(own, pelvis_tau=0)))
-    other = next(name for name in FEET if FEET[name] != own)
+    out.append(Variant("proposed-input-pace", proposed.restyle_words,
+                       "the model under test at the input's pace (`--pace input`: the root's horizontal path passes "
+                       "through)", contacts=feet_for(AUTO_FEET, proposed, "input")))
+    other = next(name for name in FEET if name != proposed.feet)
     out.append(Variant(f"proposed-feet-{other}", proposed.restyle_words,
-                       f"the model under test with `--feet {other}` instead of its own", contacts=FEET[other]))
+                       f"the model under test with `--feet {other}` instead of its own",
+                       contacts=feet_for(other, proposed)))
     out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test, "
-                                                           f"`--feet {proposed.feet}`)", contacts=own))
+                                                           f"`--feet {proposed.feet}`, `--pace style`)", contacts=own))
     return out
 
 
@@ -370,6 +378,9 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
         log(f"{variant.name}: judged {target} {100 * results[variant.name]['stream']['overall']['judged_target']:.1f} % "
             f"({time.perf_counter() - t0:.0f} s)")
 
+    windows = {a: o["windows"] for a, o in results["input"]["stream"]["per_action"].items()}
+    ceiling = travel_ceiling(held[source], held[target], real[target], target_k, judges, skeleton, windows)
+
     # The paper's plain words (hop 60, no blend) against the blend, for the model under test.
     plain = [restyle_rotations(m.rotations.astype(np.float64), proposed.restyle_words, WORD, decay_frames=0).rotations
              for m in clips]
@@ -379,7 +390,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "held_out_files": {s: len(held[s]) for s in styles}, "judges": judge_check,
                "judge_seeds": judges.seeds, "dynamics_judge_seeds": judges.dynamics_seeds,
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
-               "real_target_jerk_ratio": real_jerk, "results": results,
+               "real_target_jerk_ratio": real_jerk, "travel_ceiling": ceiling, "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0}
     plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
@@ -388,6 +399,44 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     report = write_report(out / "report.md", metrics, plots)
     log(f"eval done in {metrics['seconds']:.0f} s")
     return report
+
+
+def travel_ceiling(source_clips, target_clips, target_windows, target_k: int, judges, skeleton,
+                   weights: dict[str, int]) -> dict:
+    """How well a restyle that keeps the input's travel can read as the target, at best.
+
+    stylecast never changes the root's horizontal path (an avatar stays where its performer
+    is), but the judges see a window's positions relative to the hips at its centre, travel
+    included, and some styles cover ground at their own speed (real exhausted runs at about
+    0.8x the normal ones'). So real held-out target-style clips are judged twice: as they are,
+    and with their root path covered at the mean speed of the source clips of the same action
+    (``metrics.with_travel_speed``: path shape, timing and posture kept). The second is what a
+    perfect restyle could read through a lock on the input's travel. Per action, and overall
+    on the restyled clips' mix: each action weighted by ``weights`` (its restyled windows),
+    over the actions both styles have. Figures are per judge."""
+    speed = {}
+    for m in source_clips:
+        speed.setdefault(m.file.action, []).append(M.travel_speed(m.root_positions))
+    votes: dict[str, dict[str, list]] = {}
+    for m, as_is in zip(target_clips, target_windows):
+        a = m.file.action
+        if a not in speed:
+            continue
+        moved = M.with_travel_speed(m.root_positions, float(np.mean(speed[a])))
+        row = votes.setdefault(a, {"as_is": [], "source_travel": [], "speed": []})
+        row["as_is"].append(judges.style_votes(as_is) == target_k)
+        row["source_travel"].append(judges.style_votes(judge_windows(m.rotations, moved, skeleton)) == target_k)
+        row["speed"].append(M.travel_speed(m.root_positions))
+    per_action = {a: {"speed_ratio": float(np.mean(v["speed"]) / max(np.mean(speed[a]), 1e-12)),
+                      **{f"{k}_judges": np.concatenate(v[k], axis=1).mean(axis=1).tolist()
+                         for k in ("as_is", "source_travel")}}
+                  for a, v in sorted(votes.items())}
+    mix = {a: weights.get(a, 0) for a in per_action}
+    total = sum(mix.values())
+    overall = {f"{k}_judges": (sum(np.asarray(per_action[a][f"{k}_judges"]) * n for a, n in mix.items()) / total).tolist()
+               if total else [] for k in ("as_is", "source_travel")}
+    return {"overall": overall, "per_action": per_action,
+            "actions_missing": sorted(set(weights) - set(per_action))}
 
 
 def _plots(out: Path, clips, outputs: dict, skeleton) -> list[str]:

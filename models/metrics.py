@@ -21,6 +21,9 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   relative to the hips, so the shared root path cannot inflate it), input vs output.
 * Frechet distance between two sets of feature vectors (Gaussian fit), as in FID and
   seed 003's motion FID.
+* travel speed (``travel_speed``, ``with_travel_speed``): the root's mean horizontal speed,
+  and a root path rescaled to another speed, for the ceiling of a restyle that keeps the
+  input's travel (``eval``).
 """
 
 from __future__ import annotations
@@ -131,3 +134,21 @@ def frechet_distance(x: np.ndarray, y: np.ndarray) -> float:
     with np.errstate(all="ignore"):
         root = np.real(linalg.sqrtm(sx @ sy))  # rounding can leave a tiny imaginary part
     return float(mu @ mu + np.trace(sx) + np.trace(sy) - 2 * np.trace(root))
+
+
+def travel_speed(roots: np.ndarray) -> float:
+    """Mean horizontal speed (units per frame) of a root path (T, 3), Y up."""
+    step = np.diff(np.asarray(roots, np.float64)[:, [0, 2]], axis=0)
+    return float(np.linalg.norm(step, axis=1).mean()) if len(step) else 0.0
+
+
+def with_travel_speed(roots: np.ndarray, speed: float) -> np.ndarray:
+    """The root path (T, 3) with its horizontal displacement from the first frame scaled so
+    its mean horizontal speed is ``speed``: the same path shape and timing, covered faster or
+    slower; heights untouched. A path that does not move is returned as it is."""
+    roots = np.array(roots, np.float64)
+    own = travel_speed(roots)
+    if own <= 0.0:
+        return roots
+    roots[:, [0, 2]] = roots[0, [0, 2]] + (roots[:, [0, 2]] - roots[0, [0, 2]]) * (speed / own)
+    return roots

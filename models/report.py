@@ -120,6 +120,11 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
             v = values[key]
             lines.append(f"| {name} | {_pct(v) if shown.endswith('%') else _num(v)} | {shown} | "
                          f"{'yes' if met[key] else '**no**'} |")
+        ceiling = m.get("travel_ceiling", {}).get("overall", {}).get("source_travel_judges")
+        if setting == "stream" and ceiling:
+            lines += ["", f"Real {tgt} clips at the {src} clips' pace read {_pct(min(ceiling))} as {tgt} on the worst "
+                      "judge: the most a restyle that keeps the input's travel (`--pace input`) can be expected to read (see "
+                      "\"The ceiling of a restyle that keeps the input's travel\")."]
         lines += ["", f"## All variants, {setting} (all actions)", "",
                   "| variant | judged target | action kept | FMD | jerk all | jerk hands | jerk feet | "
                   "largest one-frame jerk / input's, worst clip (median) | slide cm/frame (ratio) | "
@@ -165,6 +170,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
               "| action | all | hands | feet |", "|---|---|---|---|"]
     for a, g in m["real_target_jerk_ratio"].items():
         lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |")
+    lines += travel_ceiling_lines(m)
     lines += ["", "## Seams", "",
               f"Seam ratio of the model under test as plain 60-frame words (the paper's setting, no blend): "
               f"{_num(m['plain_words_seam_ratio'])}; blended (above): "
@@ -175,6 +181,31 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
     lines += ["", f"Evaluation took {m['seconds']:.0f} s. Raw numbers: `metrics.json`.", ""]
     path.write_text("\n".join(lines))
     return path
+
+
+def travel_ceiling_lines(m: dict) -> list[str]:
+    """The section on what a restyle that keeps the input's travel can read at best."""
+    c = m.get("travel_ceiling")
+    if not c or not c["per_action"]:
+        return []
+    src, tgt = m["source"], m["target"]
+    lines = ["", "## The ceiling of a restyle that keeps the input's travel", "",
+             f"The judges see travel. With `--pace input` the root's horizontal path passes through; with `--pace "
+             f"style` (the default) the stream covers ground at the {tgt} pace. Real held-out {tgt} clips judged as "
+             f"{tgt} as they are, and with their root path covered at the mean speed of the held-out {src} clips of "
+             f"the same action (path shape, timing and posture kept): the second is what a perfect restyle could "
+             f"read while the avatar keeps its performer's pace. On the {src} clips' action mix "
+             f"(each action weighted by its restyled windows): as they are "
+             f"**{_range(c['overall']['as_is_judges'], _pct)}**, at the {src} pace "
+             f"**{_range(c['overall']['source_travel_judges'], _pct)}**."]
+    if c["actions_missing"]:
+        lines[-1] += f" Left out (no held-out {tgt} clip): {', '.join(c['actions_missing'])}."
+    lines += ["", f"| action | {tgt} pace / {src} pace | judged {tgt}, as they are | judged {tgt}, at the {src} pace |",
+              "|---|---|---|---|"]
+    for a, r in c["per_action"].items():
+        lines.append(f"| {a} | {_num(r['speed_ratio'], 2)} | {_range(r['as_is_judges'], _pct)} | "
+                     f"{_range(r['source_travel_judges'], _pct)} |")
+    return lines
 
 
 BAR = ("judged_target", "action_kept", "jerk_all", "slide_ratio")  # the issue's bar for every style
@@ -217,6 +248,12 @@ def write_summary(path: Path, model: str, per_target: dict, plots: list[str], se
                      f"{_num(r['jerk_all'], 2)} | {_num(r['slide_ratio'], 2)} | {_num(r['timing_sync'], 3)} | "
                      f"{_num(r['seam_ratio_relative'], 3)} | {_num(r['fmd_ratio'], 1)} | "
                      f"{_pct(r.get('judged_target_dynamics'))} | {'yes' if not short else 'no: ' + ', '.join(short)} |")
+    ceilings = {t: m["travel_ceiling"]["overall"]["source_travel_judges"] for t, m in per_target.items()
+                if m.get("travel_ceiling", {}).get("overall", {}).get("source_travel_judges")}
+    if ceilings:
+        lines += ["", "The ceiling of a restyle that keeps the input's travel (real held-out clips of the target "
+                  "style, their root path covered at the source clips' pace, judged as the target; worst judge (mean)): "
+                  + ", ".join(f"{t} {_pct(min(v))} ({_pct(float(np.mean(v)))})" for t, v in ceilings.items()) + "."]
     lines += ["", "Input (nothing done) on the same clips, judged as each target: "
               + ", ".join(f"{t} {_pct(m['results']['input']['stream']['overall']['judged_target'])}"
                           for t, m in per_target.items()) + ".", ""]

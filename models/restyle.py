@@ -88,7 +88,13 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
                                        fade_in=settings.first_fade_end)
     out = restyle_stream(padded, restyle_words, settings, intensity=intensity, roots=roots, feet=feet)
     real = slice(before, before + T)
-    return Restyled(out.rotations[real], None if out.roots is None else out.roots[real])
+    moved = None if out.roots is None else out.roots[real].copy()
+    if moved is not None and before:
+        # The mirrored lead-in walked out and back; whatever horizontal lag a style's pace
+        # (``footlock.Pace``) left at the first real frame is taken off, so the clip starts
+        # where its input does.
+        moved[:, [0, 2]] += roots[before, [0, 2]] - moved[0, [0, 2]]
+    return Restyled(out.rotations[real], moved)
 
 
 def sample_at(rotations: np.ndarray, fps: float, times: np.ndarray) -> np.ndarray:
@@ -125,20 +131,23 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
         h_template = retarget.to_humanoid(template)
     times = np.arange(template.num_frames) / out_fps
     rotations = sample_at(restyled60.rotations, FPS, times)
-    # The pelvis height the foot lock set, as a vertical offset on the template's own roots.
-    drop = np.interp(times, np.arange(h60.num_frames) / FPS, h60.root_positions[:, 1] - restyled60.roots[:, 1])
-    roots = h_template.root_positions - drop[:, None] * np.array([0.0, 1.0, 0.0])
+    # What the foot lock did to the root (the pelvis height, the style's pace), as an offset
+    # on the template's own roots.
+    frames = np.arange(h60.num_frames) / FPS
+    moved = h60.root_positions - restyled60.roots
+    roots = h_template.root_positions - np.stack([np.interp(times, frames, moved[:, k]) for k in range(3)], axis=1)
     return retarget.to_source(h_template.replace(rotations=rotations, root_positions=roots), template=template)
 
 
 def restyle_file(input_path, output_path, model=None, direction: str = "a2b", intensity: float = 1.0,
                  hop: int = DEFAULT_HOP, fps: float | None = None, map_file=None, restyler=None, live: bool = False,
-                 device: str = "cpu", style: str | None = None, feet: str = "auto") -> dict:
+                 device: str = "cpu", style: str | None = None, feet: str = "auto", pace: str = "style") -> dict:
     """``style``: a style name or mix ("elderly", "elderly:0.5,youthful:0.5"), checked before
     anything is read; a pair model takes one of its two styles (the direction follows).
-    ``feet``: where planted feet go (``motion.footlock.FEET``)."""
+    ``feet``: where planted feet go (``motion.footlock.FEET``); ``pace``: whose pace the
+    output covers ground at (``motion.footlock.PACE_CHOICES``)."""
     from stylecast.motion.bvh import read_bvh, write_bvh
-    from stylecast.motion.footlock import check_feet, feet_for
+    from stylecast.motion.footlock import check_feet, check_pace, feet_for
     from stylecast.motion.humanoid import load_user_map
 
     from .restyler import Restyler
@@ -148,6 +157,7 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
     if fps is not None and not fps > 0:
         raise UserError(f"--fps must be positive, got {fps:g}")
     check_feet(feet)
+    check_pace(pace)
     if style is not None:
         parse_mix(style)  # unknown names are refused before the model and the clip are read
     restyler = restyler or Restyler.load(model, direction, device)
@@ -155,7 +165,7 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
         restyler = restyler.with_style(style)
     user_map = load_user_map(map_file) if map_file else None
     clip = read_bvh(Path(input_path))
-    out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live, feet_for(feet, restyler))
+    out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live, feet_for(feet, restyler, pace))
     write_bvh(out, Path(output_path))
     return {"joints": len(out.skeleton), "frames": out.num_frames, "fps": out.fps, "model": restyler.name,
             "direction": restyler.direction, "from": restyler.source_style, "to": restyler.target_style}

@@ -87,6 +87,14 @@ class Restyler:
         names (``train --feet``, measured in the model card), else its kind's default."""
         return self.metadata.get("feet") or self.default_feet
 
+    def pace(self, weights=None) -> tuple:
+        """The pace the stream covers ground at (``footlock.Pace``): the target style's
+        against the source's (``pace.pace_points``). A pair has one target: ``weights`` is
+        for the multi-style model's mixes."""
+        from .pace import pace_points
+
+        return pace_points(self.source_style, {self.target_style: 1.0})
+
     @property
     def styles(self) -> dict:
         return dict(self.metadata["styles"])

@@ -42,6 +42,15 @@ class MultiStyleRestyler(Restyler):
         self.weights = one_hot(NEUTRAL, self.style_names) if weights is None else np.asarray(weights, np.float64)
         self.intensity = float(intensity)
 
+    def pace(self, weights=None) -> tuple:
+        """The pace of the mix ``weights`` (default this restyler's) against the neutral
+        style's: the performer's own style is not known live, and the training clips of
+        the other styles are restyled from normal (``pace.pace_points``)."""
+        from .pace import pace_points
+
+        mix = self.weights if weights is None else np.asarray(weights, np.float64)
+        return pace_points(NEUTRAL, dict(zip(self.style_names, mix.tolist())))
+
     @classmethod
     def from_checkpoint(cls, path, tensors, meta, rep, device, **_) -> "MultiStyleRestyler":
         from .multistyle import MultiStyleConfig, make_generator

@@ -2,7 +2,7 @@
 each planted foot of the restyled output back where the input put it.
 
 A restyle changes every bone's rotation, hips and legs included, while the root
-trajectory passes through: without a fix, a foot the performer keeps still on the floor
+trajectory is the input's (but for the pelvis height and the pace below): without a fix, a foot the performer keeps still on the floor
 drifts with the restyled hips and knees (the first shipped model slid planted feet by
 1 cm per frame, 13x the input). This stage runs after the seam blender on every output
 frame, live and offline alike (``SeamBlender`` -> ``FootLock.apply``), so ``restyle``
@@ -56,6 +56,11 @@ floor, where each short contact asks for a new gap; it is capped so a wild outpu
 fold the legs. This moves the root, which the paper passes through: only
 vertically, only by what the restyled legs themselves ask for.
 
+Pace (``Pace``, ``--pace style``, the default): styles cover ground at their own speed,
+and the judges see it (an exhausted run is slower). The root's horizontal steps are
+scaled to the target style's pace; each foot carries its own share of the lag, frozen while
+it is planted and caught up while it swings, so strides shorten and no planted foot slides.
+
 Stance (``StanceOffset``, ``--feet stance``): a style stands differently (masculine feet
 wide apart, feminine close together, knees and toes turned in or out), and a lock onto the
 input's own ankles and knees undoes that: measured on held-out clips with the multi-style
@@ -74,9 +79,10 @@ its lock (``FEET``, ``--feet auto``), and a checkpoint may name another (``train
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -110,6 +116,9 @@ SOFT_REACH = 0.1
 # a leg switched into the IK for a lift of a hundredth of a millimetre still moved its knee
 # by the difference of the two solutions
 FLOOR_LIFT_EASE = 0.5
+# cm a free foot's ``Pace`` carry must reach before its leg is fully moved by it
+# (``_carry_free_feet``), for the same reason
+CARRY_EASE = 0.5
 
 
 @dataclass(frozen=True)
@@ -160,6 +169,16 @@ class ContactSettings:
     # fully from turn_sure cm on the floor, not at all below turn_unsure, in between in part.
     turn_unsure: float = 2.0
     turn_sure: float = 6.0
+    # Pace (``Pace``): the output covers ground at the style's speed. Points (input speed,
+    # output speed) of the root's horizontal travel in cm/frame, joined by straight lines
+    # from (0, 0) and extended at the last point's ratio; () = the input's own pace (the
+    # root's horizontal path passes through). The input's speed is low-passed over
+    # pace_tau frames (about a stride), so a stride's own rhythm does not change the ratio.
+    pace: tuple[tuple[float, float], ...] = ()
+    pace_tau: float = 15.0
+    # ...and the share per frame by which a foot in the air catches up with the body's
+    # shift after its lock lets go (a planted foot keeps the shift it landed with).
+    carry_rate: float = 0.15
 
 
 # Where planted feet go (``--feet``). "input": on the input's own ankles, turned as the
@@ -184,6 +203,14 @@ FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=8.0, pe
 AUTO_FEET = "auto"  # the model's own choice (its ``feet``), else "input"
 
 
+# ``--pace``: "style", the output covers ground at the target style's pace (``Pace``; the
+# restyler's ``pace()`` points, where it has them), or "input", the performer's own (the
+# root's horizontal path passes through). Style is the default: keeping the performer's
+# pace, the pair default read exhausted in 86.1 % of held-out windows on the worst judge,
+# runs 27 %; at the style's pace 92.1 %, runs 82 % (models/checkpoints/MODEL_CARD.md).
+PACE_CHOICES = ("style", "input")
+
+
 def check_feet(name: str) -> str:
     """A ``--feet`` name, or one sentence naming the known ones (before any work)."""
     if name not in (AUTO_FEET, *FEET):
@@ -191,11 +218,28 @@ def check_feet(name: str) -> str:
     return name
 
 
-def feet_for(name: str, restyler=None) -> ContactSettings:
-    """``--feet NAME`` (checked beforehand) for ``restyler``: "auto" takes the model's own."""
+def check_pace(name: str) -> str:
+    """A ``--pace`` name, or one sentence naming the known ones (before any work)."""
+    if name not in PACE_CHOICES:
+        raise UserError(f"--pace {name!r} is not known; use one of {', '.join(PACE_CHOICES)}")
+    return name
+
+
+def pace_of(restyler, pace: str = "style", weights=None) -> tuple:
+    """``ContactSettings.pace`` for ``--pace NAME`` with ``restyler`` (towards the style mix
+    ``weights``, where it takes one): () for the input's pace or a restyler without one."""
+    if pace != "style" or not hasattr(restyler, "pace"):
+        return ()
+    return tuple(restyler.pace(weights))
+
+
+def feet_for(name: str, restyler=None, pace: str = "style") -> ContactSettings:
+    """``--feet NAME`` and ``--pace`` (checked beforehand) for ``restyler``: "auto" takes
+    the model's own lock."""
     if name == AUTO_FEET:
         name = getattr(restyler, "feet", "input")
-    return FEET[name]
+    points = pace_of(restyler, pace)
+    return replace(FEET[name], pace=points) if points else FEET[name]
 
 
 class _TriplePole:
@@ -326,6 +370,90 @@ class StanceOffset:
         return out
 
 
+class Pace:
+    """The output's horizontal travel at the style's pace (``ContactSettings.pace``), causal,
+    state carried from block to block like ``PelvisHeight``.
+
+    Real styles cover ground at their own speed (exhausted runs at 0.80x the normal ones'
+    in the training clips, walks at 0.94x), and the judges see it: real held-out exhausted
+    runs given the normal pace read exhausted in 28 % of windows. So each horizontal step
+    of the root is shortened (or lengthened) by the pace's ratio at the input's low-passed
+    speed, in proportion to how much of the restyle is shown (the seam blender's mix: none
+    in pass-through, bypass or a late word's fade). The body falls behind its performer by
+    ``shift``, which walking back takes back (a constant ratio maps the performer's path
+    onto a smaller copy of it). The slowdown is low-passed too, so a new style, a new
+    intensity or a fade never steps the body's speed.
+
+    A foot cannot simply go with the body: a planted foot would slide back. Each foot has
+    its own shift: frozen while its lock holds it (the foot stays where it landed),
+    following the body's step while free and catching up with it at ``carry_rate`` a
+    frame, in between in proportion to the lock weight, so it moves smoothly through the
+    ramps. The foot lock puts a planted foot on the input's ankle less its shift, and a
+    free foot where the restyled leg puts it, moved by how far its shift lags the body's
+    (``_carry_free_feet``): shorter strides at the same cadence."""
+
+    def __init__(self, settings: ContactSettings):
+        self.set_points(settings.pace)
+        self.rate = float(settings.carry_rate)
+        self._speed = _TriplePole(settings.pace_tau)
+        self._slowdown = _TriplePole(settings.pace_tau)
+        self._previous: tuple | None = None  # the last input root's (x, z)
+        self._shift = [0.0, 0.0]  # the body's, x and z (cm)
+        self._feet = [[0.0, 0.0], [0.0, 0.0]]  # each foot's
+        self._moving = False  # any shift so far (a stream that never slowed skips the work)
+
+    def set_points(self, points) -> None:
+        """A new pace (a new model, direction or style; () = the input's own); the body's
+        speed moves to it over the low-pass."""
+        points = sorted((float(a), float(b)) for a, b in points)
+        self.on = bool(points)
+        self._xs = [0.0] + [a for a, _ in points]
+        self._ys = [0.0] + [b for _, b in points]
+
+    def ratio(self, speed: float) -> float:
+        """Output speed over input speed at ``speed`` (cm/frame): straight lines through the
+        points from (0, 0), the last point's ratio beyond it; 1 without points."""
+        xs, ys = self._xs, self._ys
+        if not self.on:
+            return 1.0
+        if speed >= xs[-1]:
+            return ys[-1] / xs[-1]
+        if speed <= 1e-9:
+            return ys[1] / xs[1]
+        k = bisect.bisect_right(xs, speed)
+        return (ys[k - 1] + (ys[k] - ys[k - 1]) * (speed - xs[k - 1]) / (xs[k] - xs[k - 1])) / speed
+
+    def track(self, roots: np.ndarray, weights: np.ndarray, mix: np.ndarray | None = None):
+        """The next frames in order: input roots (n, 3), the lock weights (n, 2) and the share
+        of the restyle shown (n,) (None: all of it) -> the body's shift (n, 2: x, z) and each
+        foot's (n, 2, 2), to take off the input's travel; None while there is none. A
+        recurrence on Python floats (the daemon runs it a frame at a time per performer)."""
+        if not (self.on or self._moving):
+            self._previous = tuple(np.asarray(roots)[-1, [0, 2]].tolist())
+            return None
+        self._moving = True
+        n = len(roots)
+        mix = [1.0] * n if mix is None else np.broadcast_to(mix, (n,)).tolist()
+        body, feet = np.empty((n, 2)), np.empty((n, 2, 2))
+        (sx, sz), rate = self._shift, self.rate
+        for i, ((x, _, z), (wl, wr), shown) in enumerate(zip(roots.tolist(), weights.tolist(), mix)):
+            px, pz = (x, z) if self._previous is None else self._previous
+            self._previous = (x, z)
+            dx, dz = x - px, z - pz
+            speed = self._speed.step(math.hypot(dx, dz))
+            slow = self._slowdown.step(shown * (1.0 - self.ratio(speed)))
+            step_x, step_z = slow * dx, slow * dz
+            for foot, w in ((0, wl), (1, wr)):
+                fx, fz = self._feet[foot]
+                free = 1.0 - w
+                self._feet[foot] = [fx + free * (step_x + rate * (sx - fx)), fz + free * (step_z + rate * (sz - fz))]
+            sx, sz = sx + step_x, sz + step_z
+            body[i] = sx, sz
+            feet[i] = self._feet
+        self._shift = [sx, sz]
+        return body, feet
+
+
 def leg_chain(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray):
     """Forward kinematics of the Hips and both legs only, vectorised over frames.
 
@@ -453,6 +581,7 @@ class FootLock:
         self.pelvis = PelvisHeight(settings.pelvis_tau, settings.pelvis_cap, settings.pelvis_flight_tau,
                                    settings.flight_memory)
         self.stance = StanceOffset(settings)
+        self.pace = Pace(settings)
         self.frames = 0  # input frames pushed
         self._planted = np.zeros(2, dtype=bool)  # hysteresis state per foot
         self._floor_history: deque = deque(maxlen=settings.floor_window)  # lower ball height per frame
@@ -559,16 +688,19 @@ class FootLock:
         windows = sliding_window_view(c, 2 * r + 1, axis=0)  # (n, 2, 2r+1)
         return (windows * self._blend).max(axis=-1)
 
-    def apply(self, t0: int, roots: np.ndarray, inputs: np.ndarray,
-              outputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def apply(self, t0: int, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,
+              mix: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Output frames t0 .. t0+n-1, in order: their input roots (n, 3), input rotations
-        and restyled rotations (n, J, 4) -> the output's roots (the pelvis height adjusted)
-        and rotations (planted feet locked). ``plan`` then ``solve_lock_jobs`` for one lock."""
-        job = self.plan(t0, roots, inputs, outputs)
+        and restyled rotations (n, J, 4), and the share of the restyle shown in each (n,)
+        (the seam blender's mix, ``words.planned_mix``; None: all of it) -> the output's
+        roots (the pelvis height and the pace set) and rotations (planted feet locked).
+        ``plan`` then ``solve_lock_jobs`` for one lock."""
+        job = self.plan(t0, roots, inputs, outputs, mix)
         solve_lock_jobs([job])
         return job.new_roots, job.result
 
-    def plan(self, t0: int, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray) -> "LockJob":
+    def plan(self, t0: int, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,
+             mix: np.ndarray | None = None) -> "LockJob":
         """Output frames t0 .. t0+n-1 (as ``apply``'s) as a job for ``solve_lock_jobs``, which
         runs the jobs of many locks together; this part needs only the contacts pushed."""
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
@@ -576,7 +708,7 @@ class FootLock:
         self._forget_before(t0 - self.ramp)
         floor = self._floors[np.arange(t0, t0 + len(roots)) - self._base]
         return LockJob(self, t0, roots, np.asarray(inputs, dtype=np.float64), np.asarray(outputs, dtype=np.float64),
-                       w, floor)
+                       w, floor, mix)
 
     def _feet(self, roots: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ankle and ball positions (n, 2, 3) of both legs."""
@@ -597,9 +729,9 @@ class FootLock:
 @dataclass(eq=False)
 class LockJob:
     """One lock's output frames t0 .. t0+n-1 from ``FootLock.plan`` to ``solve_lock_jobs``:
-    input ``roots`` (n, 3), input and restyled rotations (n, J, 4), lock ``weights`` (n, 2)
-    and the ``floor`` (n,). Solving fills in ``new_roots`` (the pelvis height set) and
-    ``result``, the locked rotations."""
+    input ``roots`` (n, 3), input and restyled rotations (n, J, 4), lock ``weights`` (n, 2),
+    the ``floor`` (n,) and the restyle's ``mix`` (n,) or None. Solving fills in ``new_roots``
+    (the pelvis height and the pace set) and ``result``, the locked rotations."""
 
     lock: FootLock
     t0: int
@@ -608,6 +740,7 @@ class LockJob:
     outputs: np.ndarray
     weights: np.ndarray
     floor: np.ndarray
+    mix: np.ndarray | None = None
     new_roots: np.ndarray | None = None
     result: np.ndarray | None = None
 
@@ -622,6 +755,7 @@ def solve_lock_jobs(jobs: list[LockJob]) -> None:
         return
     rows = _Rows(jobs)
     _advance(rows)
+    _carry_free_feet(rows)
     for with_stance in (False, True):  # the two kinds of target: one pass each
         _lock_planted(rows, np.flatnonzero((rows.weights.max(axis=1) > 0) & (rows.with_stance == with_stance)))
     _keep_above_floor(rows)
@@ -649,6 +783,8 @@ class _Rows:
         self.with_stance = np.repeat([j.lock.stance.cap > 0 for j in jobs], sizes)
         self.result = self.outputs.copy()  # the caller's outputs stay as they are
         self.new_roots = self.own = self.stance = None  # set by ``_advance``
+        self.feet_shift = np.zeros((len(self.roots), 2, 2))  # ``Pace``: each foot's (x, z) ...
+        self.carry = np.zeros((len(self.roots), 2, 2))  # ...and how far it lags the body's
 
     def offsets_of(self, rows: np.ndarray) -> np.ndarray:
         return self.offsets if self.offsets.ndim == 2 else self.offsets[rows]
@@ -677,18 +813,47 @@ def _advance(rows: _Rows) -> None:
                                    (restyled[0][lo:hi], restyled[1][lo:hi]), planted[lo:hi])
         if stance is not None:
             rows.stance[lo:hi] = stance
+        pace = lock.pace.track(job.roots, job.weights, job.mix)
+        if pace is not None:
+            body, feet = pace
+            rows.new_roots[lo:hi, 0] -= body[:, 0]
+            rows.new_roots[lo:hi, 2] -= body[:, 1]
+            rows.feet_shift[lo:hi] = feet
+            rows.carry[lo:hi] = body[:, None] - feet
         lock.locked_frames += int(np.count_nonzero(job.weights >= 1.0))
+
+
+def _carry_free_feet(rows: _Rows) -> None:
+    """``Pace``: a foot not fully locked goes where its (restyled) leg puts it, moved by how
+    far its own shift lags the body's (the leg IK, the foot keeping its world rotation), in
+    by the carry needed over CARRY_EASE, as the floor step eases its lift."""
+    size = np.linalg.norm(rows.carry, axis=-1)  # (rows, 2)
+    need = (rows.weights < 1.0) & (size > 0.0)
+    at = np.flatnonzero(need.any(axis=1))
+    if not len(at):
+        return
+    roots, outputs, offsets = rows.new_roots[at], rows.result[at], rows.offsets_of(at)
+    pos, world, _ = leg_chain(roots, outputs, offsets)
+    target = pos[:, :, 2].copy()
+    target[..., [0, 2]] += rows.carry[at]
+    solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2])
+    legs = LEG_INDEX[:, :3]
+    eased = np.where(need[at], np.clip(size[at] / CARRY_EASE, 0.0, 1.0), 0.0)
+    weight = np.broadcast_to(eased[:, :, None], solved.shape[:-1])
+    rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
 
 
 def _lock_planted(rows: _Rows, at: np.ndarray) -> None:
     """Rows ``at``, where a lock weight is above 0: the leg IK onto the input's ankle (or
-    beside it, with the stance), the foot turned as the input's, the knee in its restyled
-    plane, slerped with the restyled leg by the weight."""
+    beside it, with the stance; less the foot's ``Pace`` shift), the foot turned as the
+    input's, the knee in its restyled plane, slerped with the restyled (and carried) leg by
+    the weight."""
     if not len(at):
         return
-    offsets, inputs, outputs = rows.offsets_of(at), rows.inputs[at], rows.outputs[at]
+    offsets, inputs, outputs = rows.offsets_of(at), rows.inputs[at], rows.result[at]
     pos_in, world_in, _ = leg_chain(rows.roots[at], inputs, offsets)
-    ankle, foot = pos_in[:, :, 2], world_in[:, :, 2]  # the input's own
+    ankle, foot = pos_in[:, :, 2].copy(), world_in[:, :, 2]  # the input's own
+    ankle[..., [0, 2]] -= rows.feet_shift[at]
     if rows.with_stance[at[0]]:  # beside them, turned as restyled
         stance = rows.stance[at]
         ankle = ankle + stance[:, :, :2] @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])

@@ -294,6 +294,15 @@ class SeamBlender:
             del self._words[old]
 
 
+def planned_mix(runs: list, n: int) -> np.ndarray:
+    """The share of the restyle shown in each of the ``n`` frames ``plan_block`` planned as
+    ``runs`` (n,): 0 in pass-through, 1 fully restyled, in between through a fade."""
+    mix = np.empty(n)
+    for start, run, _, m in runs:
+        mix[start:start + run] = m
+    return mix
+
+
 def render_planned(items: list[tuple[SeamBlender, list, np.ndarray]]) -> list[np.ndarray]:
     """``render_block``'s second pass for one or many blenders: (blender, its planned runs,
     their inputs (n, J, 4)) -> output rotations (n, J, 4) each, every frame of every item
@@ -355,12 +364,13 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     ends, words = cut_words(padded, settings.hop, settings.word_length, settings.phase)
     for i in range(0, len(words), batch):
         blender.add_words(ends[i:i + batch], restyle_words(words[i:i + batch]))
-    out = CorrectionFilter(J, settings.correction_tau).apply(rotations, blender.render_block(0, rotations, intensity))
+    runs = blender.plan_block(0, rotations, intensity)
+    out = CorrectionFilter(J, settings.correction_tau).apply(rotations, render_planned([(blender, runs, rotations)])[0])
     if feet is None:
         return Restyled(out, roots)
     # The daemon holds an ended source's last frame for at least ``delay`` >= ramp frames.
     tail = max(held, feet.ramp)
     feet.push(np.concatenate([roots, np.repeat(roots[-1:], tail, axis=0)]),
               np.concatenate([rotations, np.repeat(rotations[-1:], tail, axis=0)]))
-    new_roots, locked = feet.apply(0, roots, rotations, out)
+    new_roots, locked = feet.apply(0, roots, rotations, out, planned_mix(runs, T))
     return Restyled(locked, new_roots)

@@ -130,6 +130,30 @@ def test_daemon_output_equals_offline_restyle_with_the_shipped_model():
 
 
 @pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")
+def test_serve_covers_ground_at_the_styles_pace_unless_told_to_keep_the_performers():
+    """``--pace style`` (the default) slows a normal walk made exhausted to the exhausted
+    pace, as ``restyle --live`` does; ``--pace input`` keeps the performer's path; turning
+    the model round live (b2a: exhausted -> normal) gives the sessions the other pace."""
+    from stylecast.models.restyler import Restyler
+
+    restyler = Restyler.load(str(CHECKPOINT))
+    clip = walk_clip(360)  # 100 cm/s
+    travel = {}
+    for pace in ("style", "input"):
+        daemon, frames = run_daemon(clip, restyler, hop=4, pace=pace)
+        roots = np.stack([f.root_position for f in frames["p0"]])
+        travel[pace] = np.linalg.norm(np.diff(roots[150:, [0, 2]], axis=0), axis=1).sum()
+        expected = offline(clip, restyler, 4, feet_for(AUTO_FEET, restyler, pace))
+        np.testing.assert_allclose(roots, expected.roots, atol=1e-6)
+    own = np.linalg.norm(np.diff(clip.root_positions[150:, [0, 2]], axis=0), axis=1).sum()
+    (walks_in, walks_out), _ = restyler.pace()
+    assert travel["input"] == pytest.approx(own, rel=1e-9)
+    assert travel["style"] == pytest.approx(own * walks_out / walks_in, rel=0.02)  # 0.94 of it
+    daemon, _ = run_daemon(clip, restyler, hop=4, actions={5: lambda d: d.set_direction("b2a")})
+    assert daemon.sessions[0].feet.pace.ratio(100 / 60) > 1.0  # exhausted made normal: faster
+
+
+@pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")
 @pytest.mark.parametrize("feet", sorted(FEET))
 def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root, feet):
     """The real path end to end: a Bandai BVH replayed by the daemon (bvh source: read,
@@ -151,7 +175,7 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root, feet)
         daemon, frames = run_daemon(motion, restyler, hop=hop, feet=feet)
         assert daemon.sessions[0].feet.locked_frames > 60  # a walk plants its feet: the lock is compared too
         live = np.stack([f.rotations for f in frames["p0"]])
-        expected = offline(resample(motion, 60.0), restyler, hop, FEET[feet])
+        expected = offline(resample(motion, 60.0), restyler, hop, feet_for(feet, restyler))  # the style's pace too
         assert live.shape == expected.rotations.shape
         assert rot.angle_between(live, expected.rotations).max() < 1e-8  # degrees
         np.testing.assert_allclose(np.stack([f.root_position for f in frames["p0"]]), expected.roots, atol=1e-6)

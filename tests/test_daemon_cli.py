@@ -28,6 +28,9 @@ def test_serve_refuses_bad_input_with_one_sentence():
     r = stylecast("serve", "--source", "bvh:///nope.bvh", "--feet", "glued", "--control", "off")
     assert r.returncode == 2 and "--feet 'glued' is not known; use one of auto, input, stance" in r.stderr
     assert r.stderr.count("\n") == 1
+    r = stylecast("serve", "--source", "bvh:///nope.bvh", "--pace", "brisk", "--control", "off")
+    assert r.returncode == 2 and "--pace 'brisk' is not known; use one of style, input" in r.stderr
+    assert r.stderr.count("\n") == 1
 
 
 @pytest.mark.skipif(not WALK.exists(), reason="shared Bandai data not present")

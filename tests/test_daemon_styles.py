@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import logging
 import socket
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from stylecast.daemon.restylers import StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler
+from stylecast.models.pace import pace_points
 from stylecast.models.styles import STYLES, one_hot, parse_mix
 from stylecast.models.train_multistyle import train_multistyle
 from stylecast.motion.clock import FakeClock
@@ -99,8 +101,10 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
             daemon.step()
         assert model.calls and all(w is None for _, w in model.calls)  # nobody chose: the model's own (youthful) for all
         assert np.allclose(daemon.worker.restyler.weights, one_hot("youthful"))
-        # --feet auto: a multistyle model's sessions keep the restyled stance (motion.footlock.FEET)
-        assert all(s.feet.settings == FEET["stance"] for s in daemon.sessions)
+        # --feet auto: a multistyle model's sessions keep the restyled stance (motion.footlock.FEET),
+        # at the pace of the style they are given (--pace style)
+        assert all(s.feet.settings == replace(FEET["stance"], pace=pace_points("normal", {"youthful": 1.0}))
+                   for s in daemon.sessions)
         accepted = daemon.control.counts["accepted"]
         client.sendto(osc("/stylecast/style", "elderly", "alice"), ("127.0.0.1", port))
         client.sendto(osc("/stylecast/mix", "active", 0.5, "feminine", 0.5, "bob"), ("127.0.0.1", port))
@@ -123,6 +127,10 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         assert np.all(np.diff(elderly) >= 0) and elderly[1] == 1.0 and elderly[-1] == 1.0
         lines = daemon.status_lines()
         assert "elderly" in lines[0] and "active 0.50 + feminine 0.50" in lines[1]
+        # each performer's pace moved to its own style's: elderly walks slower, active faster
+        walk = 109.8 / 60  # cm a frame, the normal walks' pace
+        alice, bob = (s.feet.pace.ratio(walk) for s in daemon.sessions)
+        assert alice == pytest.approx(71.3 / 109.8) and bob == pytest.approx((142.4 + 117.4) / 2 / 109.8)
         assert any("unknown style 'sleepy'" in r.getMessage() and "youthful" in r.getMessage() for r in caplog.records)
         # The delivered words are the model's own answer for each row's mix.
         word = np.stack([walk_clip(60).rotations])

@@ -4,6 +4,8 @@ frame at a time as for a whole clip, and nothing done where no foot is planted."
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -156,24 +158,33 @@ def test_a_planted_foot_stands_no_further_than_the_stance_cap_beside_the_input()
     assert np.abs(offset[1:] - STANCE.stance_cap).max() < 0.05  # as far as allowed, and no further
 
 
-def test_streaming_a_frame_at_a_time_equals_the_whole_clip():
+@pytest.mark.parametrize("paced", [False, True])
+def test_streaming_a_frame_at_a_time_equals_the_whole_clip(paced):
     roots, q = stepping(180)
     out_in = restyled(q)
-    whole = FootLock(SK, ramp=4)
+    settings = ContactSettings()
+    mix = None
+    if paced:  # gliding on at 0.3 cm a frame (slow enough to plant), slowed to 0.8 of it as the restyle fades in
+        roots = roots + np.outer(0.3 * np.arange(len(q)), [0.0, 0.0, 1.0])
+        settings = replace(settings, pace=((0.3, 0.24),))
+        mix = np.clip((np.arange(len(q)) - 20) / 30.0, 0.0, 1.0)
+    whole = FootLock(SK, ramp=4, settings=settings)
     whole.push(roots, q)
-    expected_roots, expected = whole.apply(0, roots, q, out_in)
-    live = FootLock(SK, ramp=4)
+    expected_roots, expected = whole.apply(0, roots, q, out_in, mix)
+    live = FootLock(SK, ramp=4, settings=settings)
     got, got_roots = [], []
     for t in range(len(q)):
         live.push(roots[t:t + 1], q[t:t + 1])
         k = t - 4
         if k >= 0:
-            r, frame = live.apply(k, roots[k:k + 1], q[k:k + 1], out_in[k:k + 1])
+            r, frame = live.apply(k, roots[k:k + 1], q[k:k + 1], out_in[k:k + 1], None if mix is None else mix[k:k + 1])
             got.append(frame[0])
             got_roots.append(r[0])
     assert rot.angle_between(np.array(got), expected[:len(got)]).max() < 1e-9
     np.testing.assert_allclose(np.array(got_roots), expected_roots[:len(got)], atol=1e-9)
     assert np.ptp(expected_roots[:, 1]) > 0.5  # the pelvis height really moved
+    travelled, input_travel = expected_roots[-1, 2] - expected_roots[0, 2], roots[-1, 2] - roots[0, 2]
+    assert travelled < 0.9 * input_travel if paced else travelled == input_travel == 0.0
 
 
 def test_performers_solved_in_one_call_equal_each_solved_alone():
@@ -187,7 +198,7 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
     performers = [(SK, ON_INPUT_ANKLES, roots, restyled(q)),
                   (SK.with_offsets(SK.offsets * 0.85), ON_INPUT_ANKLES, roots * [1, 0.85, 1], restyled(q, 20.0)),
                   (SK.with_offsets(SK.offsets * 1.1), STANCE, roots * [1, 1.1, 1], restyled(q)),
-                  (SK, ON_INPUT_ANKLES, glide, crouched(q))]
+                  (SK, replace(ON_INPUT_ANKLES, pace=((2.0, 1.5),)), glide, crouched(q))]  # and a pace
     together = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     alone = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     lifted = locked = 0

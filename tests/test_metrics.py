@@ -200,3 +200,52 @@ def test_a_dynamics_judge_cannot_see_a_posture_shift_and_a_full_judge_can():
     full = WordClassifier(["a", "b"], 12, seed=0).fit(windows, labels, epochs=2)
     assert np.allclose(dynamics.probabilities(shifted), dynamics.probabilities(windows), atol=1e-4)
     assert not np.allclose(full.probabilities(shifted), full.probabilities(windows), atol=1e-3)
+
+
+def test_a_root_path_rescaled_to_another_pace_keeps_its_start_shape_and_heights():
+    _, roots = smooth_motion()  # 80 cm/s along +Z: 1.333 cm a frame
+    roots[:, 0] = 10 * np.sin(np.arange(len(roots)) / 30.0)  # with a sway, so the shape is checked too
+    slower = M.with_travel_speed(roots, 0.5 * M.travel_speed(roots))
+    assert M.travel_speed(slower) == pytest.approx(0.5 * M.travel_speed(roots))
+    np.testing.assert_allclose(slower[0], roots[0])
+    np.testing.assert_allclose(slower[:, 1], roots[:, 1])  # heights untouched
+    np.testing.assert_allclose(slower[:, [0, 2]] - roots[0, [0, 2]], 0.5 * (roots[:, [0, 2]] - roots[0, [0, 2]]))
+    still = np.tile(roots[:1], (50, 1))
+    np.testing.assert_array_equal(M.with_travel_speed(still, 2.0), still)  # nothing to rescale
+
+
+class _PaceJudge:
+    """A stand-in style judge that reads travel alone: target style (1) when the hips cover
+    less than 40 cm over a window, the other style (0) otherwise."""
+
+    def style_votes(self, windows: np.ndarray) -> np.ndarray:
+        travel = np.linalg.norm(windows[:, -1, 0, [0, 2]] - windows[:, 0, 0, [0, 2]], axis=-1)  # metres
+        return (travel < 0.4).astype(int)[None]
+
+
+def test_the_travel_ceiling_falls_for_a_style_told_by_its_pace_and_not_for_one_told_by_posture():
+    """The known-bad case of a restyle that keeps the input's travel: a style whose real
+    clips move slower. Judged at the source's pace, real target clips of that action no
+    longer read as the target; an action whose pace is the same keeps its reading."""
+    from types import SimpleNamespace
+
+    from stylecast.models.eval import travel_ceiling
+    from stylecast.models.judges import judge_windows
+
+    sk = humanoid_skeleton_default()
+    q, fast = smooth_motion()  # 80 cm/s: 80 cm a window
+    slow = M.with_travel_speed(fast, 0.3 * M.travel_speed(fast))  # 24 cm a window: the target's pace
+
+    def clip(action, roots):
+        return SimpleNamespace(file=SimpleNamespace(action=action), rotations=q, root_positions=roots)
+
+    source = [clip("run", fast), clip("wave", slow)]
+    target = [clip("run", slow), clip("wave", slow)]
+    windows = [judge_windows(c.rotations, c.root_positions, sk) for c in target]
+    c = travel_ceiling(source, target, windows, 1, _PaceJudge(), sk, {"run": 3, "wave": 1, "walk": 5})
+    assert c["per_action"]["run"]["as_is_judges"] == [1.0] and c["per_action"]["run"]["source_travel_judges"] == [0.0]
+    assert c["per_action"]["run"]["speed_ratio"] == pytest.approx(0.3)
+    assert c["per_action"]["wave"]["as_is_judges"] == [1.0] and c["per_action"]["wave"]["source_travel_judges"] == [1.0]
+    # weighted by the restyled windows of each action both styles have: (3 * 0 + 1 * 1) / 4
+    assert c["overall"]["as_is_judges"] == [1.0] and c["overall"]["source_travel_judges"] == [pytest.approx(0.25)]
+    assert c["actions_missing"] == ["walk"]

@@ -4,6 +4,7 @@ skipped when it is absent)."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 from stylecast.cli import main
 from stylecast.motion import Clip, Skeleton
 from stylecast.motion.bvh import read_bvh, write_bvh
+from stylecast.motion.clip import forward_kinematics
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai"
 DATA2 = SHARED / "dataset-2" / "data"
@@ -57,7 +59,8 @@ def test_a_checkpoint_names_the_foot_lock_it_is_served_with(tiny_run, tmp_path, 
     assert main(["train", "--max-words", "8", "--epochs", "1", "--batch-size", "4", "--words-per-epoch", "4",
                  "--threads", "1", "--feet", "stance", "--out", str(tmp_path / "run"), "--no-progress"]) == 0
     restyler = Restyler.load(str(tmp_path / "run" / "model.safetensors"))
-    assert restyler.feet == "stance" and feet_for(AUTO_FEET, restyler) == FEET["stance"]
+    assert restyler.feet == "stance" and feet_for(AUTO_FEET, restyler, "input") == FEET["stance"]
+    assert feet_for(AUTO_FEET, restyler) == replace(FEET["stance"], pace=restyler.pace())  # --pace style
     tensors, meta = ckpt.read_checkpoint(tmp_path / "run" / "model.safetensors")
     ckpt.save_checkpoint(tmp_path / "glued.safetensors", tensors, {**meta, "feet": "glued"})
     capsys.readouterr()
@@ -83,7 +86,17 @@ def test_restyle_keeps_the_input_skeleton_and_frame_count(tiny_run, tmp_path, ca
     src, res = read_bvh(CLIP), read_bvh(out)
     assert res.skeleton.names == src.skeleton.names
     assert res.num_frames == src.num_frames and res.fps == src.fps
-    assert np.allclose(res.root_positions, src.root_positions, atol=1e-3)  # the root passes through
+    # The hips start where the input's do and cover ground at the exhausted pace (a normal
+    # walk: 0.94 of its path); with --pace input they keep the input's own path.
+    kept = tmp_path / "kept.bvh"
+    assert main(["restyle", str(CLIP), "-o", str(kept), "--model", str(tiny_run / "model.safetensors"),
+                 "--threads", "1", "--pace", "input"]) == 0
+    hips = {name: forward_kinematics(read_bvh(path))[0][:, src.skeleton.names.index("Hips")]
+            for name, path in (("input", CLIP), ("style", out), ("kept", kept))}
+    travel = {name: np.linalg.norm(np.diff(h[:, [0, 2]], axis=0), axis=1).sum() for name, h in hips.items()}
+    np.testing.assert_allclose(hips["style"][0, [0, 2]], hips["input"][0, [0, 2]], atol=1e-3)
+    assert 0.9 < travel["style"] / travel["input"] < 0.97
+    np.testing.assert_allclose(hips["kept"][:, [0, 2]], hips["input"][:, [0, 2]], atol=1e-3)
     assert main(["info", str(out)]) == 0
     capsys.readouterr()
     out60 = tmp_path / "out60.bvh"
@@ -119,6 +132,12 @@ def test_restyle_refuses_an_unknown_feet_mode_before_reading_anything(tmp_path, 
     assert code == 2 and "--feet 'glued' is not known; use one of auto, input, stance" in err and err.count("\n") == 1
 
 
+def test_restyle_refuses_an_unknown_pace_before_reading_anything(tmp_path, capsys):
+    code = main(["restyle", "missing.bvh", "-o", str(tmp_path / "x.bvh"), "--pace", "brisk"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--pace 'brisk' is not known; use one of style, input" in err and err.count("\n") == 1
+
+
 def test_restyle_refuses_a_corrupt_checkpoint(tmp_path, capsys):
     bad = tmp_path / "bad.safetensors"
     bad.write_bytes(b"not a checkpoint at all")
@@ -136,7 +155,8 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     report = (tmp_path / "report.md").read_text()
     for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
                     "Per action, stream", "What the action judge took each action's windows for",
-                    "What the windows were taken for", "Real motion: jerk", "Seams"):
+                    "What the windows were taken for", "Real motion: jerk", "Seams",
+                    "The ceiling of a restyle that keeps the input's travel"):
         assert section in report
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     results = metrics["results"]
@@ -161,6 +181,10 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     assert metrics["dynamics_judge_seeds"] == [0] and len(proposed["judged_target_dynamics_judges"]) == 1
     assert all(len(j["dynamics_accuracy_judges"]) == 1 for j in metrics["judges"].values())
     assert "worst dynamics judge" in report and "judged target, dynamics" in report
+    # the travel ceiling: real target clips judged by every judge, as they are and at the input's pace
+    ceiling = metrics["travel_ceiling"]
+    assert set(ceiling["per_action"]) == set(results["input"]["stream"]["per_action"]) - set(ceiling["actions_missing"])
+    assert all(len(ceiling["overall"][k]) == 2 for k in ("as_is_judges", "source_travel_judges"))
     assert (tmp_path / "fig_hand_foot.png").exists()
 
 
@@ -179,7 +203,6 @@ class _Identity:
 @needs_data
 def test_restyle_path_with_an_identity_model_reproduces_the_input():
     from stylecast.models.restyle import restyle_clip
-    from stylecast.motion.clip import forward_kinematics
 
     clip = read_bvh(CLIP)
     out = restyle_clip(clip, _Identity(), hop=20)

@@ -1,0 +1,122 @@
+"""The style's pace (models/pace.py, motion/footlock.py ``Pace``): the table is what the
+training clips measure, and a stream slowed to a style's pace covers ground at that pace
+while its planted feet stay planted, its strides shorten without a pop, and nothing moves
+where the restyle is not shown."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from stylecast.models import data as D
+from stylecast.models.metrics import jerk, travel_speed, world_positions
+from stylecast.models.pace import PACES, measure_paces, pace_points
+from stylecast.motion.footlock import FEET, FootLock, Pace, leg_chain
+from stylecast.motion.words import planned_mix
+
+DATA = D.default_data_dir()
+needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"the shared Bandai data is not at {DATA}")
+
+
+@needs_data
+def test_the_pace_table_is_what_the_training_clips_measure():
+    measured = measure_paces(D.list_files(DATA))
+    assert set(measured) == set(PACES)
+    for style, (walks, runs) in measured.items():
+        assert PACES[style] == pytest.approx((walks, runs), abs=0.051), style
+
+
+def test_pace_points_map_the_source_speeds_onto_the_target_mix():
+    assert all(a == b for a, b in pace_points("normal", {"normal": 1.0}))  # the same style: the same pace
+    slow = pace_points("normal", {"elderly": 1.0})
+    assert [b / a for a, b in slow] == pytest.approx([71.3 / 109.8, 147.2 / 281.4])
+    half = pace_points("normal", {"elderly": 0.5, "active": 0.5})
+    assert [b for _, b in half] == pytest.approx([(71.3 + 142.4) / 120, (147.2 + 338.8) / 120])
+    assert pace_points("normal", {"dancing": 1.0}) == () and pace_points("robot", {"normal": 1.0}) == ()
+
+
+def test_a_pace_ratio_is_the_line_through_its_points():
+    pace = Pace(replace(FEET["input"], pace=((2.0, 1.6), (5.0, 3.5))))
+    assert pace.ratio(0.0) == pytest.approx(0.8) and pace.ratio(1.0) == pytest.approx(0.8)
+    assert pace.ratio(3.5) == pytest.approx((1.6 + 0.5 * 1.9) / 3.5)
+    assert pace.ratio(9.0) == pytest.approx(0.7)  # beyond the last point: its ratio
+    assert Pace(FEET["input"]).ratio(3.0) == 1.0  # no points: the input's pace
+
+
+def held_out_walk():
+    files = [f for f in D.files_for_style(D.list_files(DATA), "normal", "val") if f.action == "walk"]
+    m = D.load_motions(files[:1])[0]
+    return m.root_positions.astype(np.float64), m.rotations.astype(np.float64)
+
+
+@needs_data
+@pytest.mark.parametrize("feet", ["input", "stance"])
+def test_at_a_slower_pace_a_walk_covers_less_ground_with_its_planted_feet_still(feet):
+    from stylecast.models.eval import bandai_skeleton
+
+    roots, q = held_out_walk()
+    sk = bandai_skeleton(D.list_files(DATA))
+    ratio = 0.8
+    speed = travel_speed(roots)
+    settings = replace(FEET[feet], pace=((speed, ratio * speed),))  # 0.8 of the input's speed at any speed
+    lock = FootLock(sk, settings=settings)
+    contacts = lock.push(roots, q)
+    new_roots, out = lock.apply(0, roots, q, q)  # an unchanged pose: the pace alone
+    # the body covers 0.8 of the input's ground once the low-passes have settled
+    settled = slice(90, None)
+    step_in = np.linalg.norm(np.diff(roots[settled][:, [0, 2]], axis=0), axis=1).sum()
+    step_out = np.linalg.norm(np.diff(new_roots[settled][:, [0, 2]], axis=0), axis=1).sum()
+    assert step_out / step_in == pytest.approx(ratio, abs=0.02)
+    # a foot the lock holds fully stays where it landed, as still as the input's own
+    p_in, _, _ = leg_chain(roots, q, sk.offsets)
+    p_out, _, _ = leg_chain(new_roots, out, sk.offsets)
+    w = lock.weights(0, len(q))
+    held = (w[1:] >= 1.0) & (w[:-1] >= 1.0)
+
+    def slide(p):  # the slower of ankle and ball, as the contact detector has it (a heel lifts first)
+        return np.linalg.norm(np.diff(p[:, :, 2:4][..., [0, 2]], axis=0), axis=-1).min(axis=-1)[held]
+
+    assert held.sum() > 100 and contacts.any()
+    # (a foot carried with the body instead slides back by a fifth of the body's step: 0.38 cm a frame)
+    assert slide(p_out).mean() <= slide(p_in).mean() + FEET[feet].stance_rate + 1e-3
+    # shorter strides, not pops: the largest one-frame jerk stays near the input's own
+    j_in, j_out = jerk(world_positions(q, roots, sk)), jerk(world_positions(out, new_roots, sk))
+    assert j_out.max() < 1.5 * j_in.max()
+    assert j_out.mean() < j_in.mean()  # slower feet
+
+
+def test_the_pace_follows_the_share_of_the_restyle_shown():
+    """Pass-through (mix 0) leaves the travel alone; a fade moves the body's speed smoothly."""
+    n = 300
+    roots = np.stack([np.zeros(n), np.full(n, 100.0), 2.0 * np.arange(n)], axis=1)  # 2 cm a frame
+    settings = replace(FEET["input"], pace=((2.0, 1.5),))
+    weights = np.zeros((n, 2))
+    body, _ = Pace(settings).track(roots, weights, np.zeros(n))
+    assert np.abs(body).max() == 0.0
+    mix = np.clip((np.arange(n) - 100) / 30.0, 0.0, 1.0)  # pass-through, then a 30-frame fade-in
+    body, feet = Pace(settings).track(roots, weights, mix)
+    speed = 2.0 - np.diff(body[:, 1])  # the output's step
+    assert speed[:100] == pytest.approx(2.0) and speed[-50:] == pytest.approx(1.5, abs=5e-3)
+    assert np.abs(np.diff(speed, 2)).max() < 0.01  # no kink
+    # free feet follow the body (here never locked): they catch up with its shift
+    np.testing.assert_allclose(feet[-1], np.tile(body[-1], (2, 1)), atol=0.05)
+
+
+def test_the_planned_mix_spells_out_each_run():
+    runs = [(0, 3, None, 0.0), (3, 2, None, np.array([0.25, 0.5])), (5, 1, None, 1.0)]
+    assert planned_mix(runs, 6).tolist() == [0.0, 0.0, 0.0, 0.25, 0.5, 1.0]
+
+
+@needs_data
+def test_restyle_starts_a_paced_clip_where_its_input_starts_and_writes_the_shorter_path():
+    from stylecast.models.eval import bandai_skeleton
+    from stylecast.models.restyle import restyle_rotations
+
+    roots, q = held_out_walk()
+    sk = bandai_skeleton(D.list_files(DATA))
+    settings = replace(FEET["input"], pace=((travel_speed(roots), 0.8 * travel_speed(roots)),))
+    out = restyle_rotations(q, lambda words: words, 4, roots=roots, skeleton=sk, contacts=settings)
+    np.testing.assert_allclose(out.roots[0, [0, 2]], roots[0, [0, 2]], atol=1e-9)  # the mirrored lead-in taken off
+    assert travel_speed(out.roots) == pytest.approx(0.8 * travel_speed(roots), rel=0.03)
