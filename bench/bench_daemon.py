@@ -520,19 +520,19 @@ def bench_seams(model):
           rows)
 
 
-def bench_footlock(motion, runs=5, performers=16):
-    from stylecast.motion.footlock import FEET, FootLock, solve_lock_jobs
+def bench_footlock(model, motion, runs=5, performers=16):
+    from stylecast.motion.footlock import FootLock, feet_for, solve_lock_jobs
 
     clip = motion  # already on the output grid (base_motion)
     rotations, roots = clip.rotations.astype(np.float64), clip.root_positions.astype(np.float64)
     n = len(roots)
 
-    def per_frame(feet, mode):
+    def per_frame(feet, pace, mode):
         """CPU ms per performer-frame: "each" one lock, one frame per call (the daemon before
         this release); "tick" ``performers`` locks, one solve per tick for all (the daemon
         now); "whole" one lock, all frames in one call (``restyle``)."""
         count = performers if mode == "tick" else 1
-        locks = [FootLock.for_stream(clip.skeleton, 5, FEET[feet]) for _ in range(count)]
+        locks = [FootLock.for_stream(clip.skeleton, 5, feet_for(feet, model, pace)) for _ in range(count)]
         lock = locks[0]
         c0 = time.process_time()
         if mode == "whole":
@@ -554,11 +554,12 @@ def bench_footlock(motion, runs=5, performers=16):
 
     rows = []
     for feet in ("input", "stance"):
-        each, tick, whole = (float(np.median([per_frame(feet, mode) for _ in range(runs)]))
-                             for mode in ("each", "tick", "whole"))
-        rows.append((feet, f"{each:.3f}", f"{tick:.3f}", f"{whole:.3f}", f"{each / tick:.1f}x"))
+        for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
+            each, tick, whole = (float(np.median([per_frame(feet, pace, mode) for _ in range(runs)]))
+                                 for mode in ("each", "tick", "whole"))
+            rows.append((feet, pace, f"{each:.3f}", f"{tick:.3f}", f"{whole:.3f}", f"{each / tick:.1f}x"))
     table(f"Foot lock CPU ms per performer-frame ({n} frames, median of {runs}; the input as the restyle)",
-          ["--feet", "one lock per call", f"{performers} performers, one solve per tick (daemon)",
+          ["--feet", "--pace", "one lock per call", f"{performers} performers, one solve per tick (daemon)",
            "all frames in one call (restyle)", "per call / per tick"], rows)
 
 
@@ -594,7 +595,7 @@ def main(argv):
     if "seams" in which:
         bench_seams(model)
     if "footlock" in which:
-        bench_footlock(motion)
+        bench_footlock(model, motion)
 
 
 if __name__ == "__main__":

@@ -116,6 +116,12 @@ SOFT_REACH = 0.1
 # a leg switched into the IK for a lift of a hundredth of a millimetre still moved its knee
 # by the difference of the two solutions
 FLOOR_LIFT_EASE = 0.5
+# The fastest pace against the performer's (``Pace``): a body ahead of its performer needs
+# strides longer than the performer's from the same planted feet, and the planted leg
+# stretched out behind the hips to full reach and popped its knee as the lock let go (the
+# multistyle model made active, whose walks are 1.30x as fast: 7.3x the input's largest
+# one-frame jerk, against 3.0x at the input's pace). So a style's pace only slows.
+MAX_PACE_RATIO = 1.0
 # cm a free foot's ``Pace`` carry must reach before its leg is fully moved by it
 # (``_carry_free_feet``), for the same reason
 CARRY_EASE = 0.5
@@ -412,16 +418,19 @@ class Pace:
 
     def ratio(self, speed: float) -> float:
         """Output speed over input speed at ``speed`` (cm/frame): straight lines through the
-        points from (0, 0), the last point's ratio beyond it; 1 without points."""
+        points from (0, 0), the last point's ratio beyond it; 1 without points. At most
+        MAX_PACE_RATIO."""
         xs, ys = self._xs, self._ys
         if not self.on:
             return 1.0
         if speed >= xs[-1]:
-            return ys[-1] / xs[-1]
-        if speed <= 1e-9:
-            return ys[1] / xs[1]
-        k = bisect.bisect_right(xs, speed)
-        return (ys[k - 1] + (ys[k] - ys[k - 1]) * (speed - xs[k - 1]) / (xs[k] - xs[k - 1])) / speed
+            ratio = ys[-1] / xs[-1]
+        elif speed <= 1e-9:
+            ratio = ys[1] / xs[1]
+        else:
+            k = bisect.bisect_right(xs, speed)
+            ratio = (ys[k - 1] + (ys[k] - ys[k - 1]) * (speed - xs[k - 1]) / (xs[k] - xs[k - 1])) / speed
+        return min(ratio, MAX_PACE_RATIO)
 
     def track(self, roots: np.ndarray, weights: np.ndarray, mix: np.ndarray | None = None):
         """The next frames in order: input roots (n, 3), the lock weights (n, 2) and the share

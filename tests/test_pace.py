@@ -43,6 +43,8 @@ def test_a_pace_ratio_is_the_line_through_its_points():
     assert pace.ratio(3.5) == pytest.approx((1.6 + 0.5 * 1.9) / 3.5)
     assert pace.ratio(9.0) == pytest.approx(0.7)  # beyond the last point: its ratio
     assert Pace(FEET["input"]).ratio(3.0) == 1.0  # no points: the input's pace
+    faster = Pace(replace(FEET["input"], pace=((2.0, 2.6),)))  # a faster style: a pace only slows
+    assert faster.ratio(2.0) == 1.0
 
 
 def held_out_walk():
