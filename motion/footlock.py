@@ -530,13 +530,14 @@ def _soft_reach(dist: np.ndarray, reach) -> np.ndarray:
 
 
 def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, ankle_target: np.ndarray,
-               foot_world: np.ndarray) -> np.ndarray:
+               foot_world: np.ndarray, chain: tuple | None = None) -> np.ndarray:
     """Two-bone IK of both legs: local rotations (n, 2, 3, 4) of UpperLeg, LowerLeg and
     Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches,
     eased within SOFT_REACH of full stretch), bend each knee the way it folds in
     ``rotations`` (``knee_direction``) and give the foot the world rotation ``foot_world``
-    (n, 2, 4); the hips are those of ``rotations``; ``offsets`` as ``leg_chain``'s."""
-    pos, world, hips = leg_chain(roots, rotations, offsets)
+    (n, 2, 4); the hips are those of ``rotations``; ``offsets`` as ``leg_chain``'s; ``chain``:
+    ``leg_chain``'s result for these, where the caller has it already."""
+    pos, world, hips = leg_chain(roots, rotations, offsets) if chain is None else chain
     thigh = np.linalg.norm(offsets[..., LEG_INDEX[:, 1], :], axis=-1)  # (2,) or (n, 2): socket to knee
     shin = np.linalg.norm(offsets[..., LEG_INDEX[:, 2], :], axis=-1)  # knee to ankle
     socket, knee = pos[:, :, 0], pos[:, :, 1]
@@ -842,10 +843,11 @@ def _carry_free_feet(rows: _Rows) -> None:
     if not len(at):
         return
     roots, outputs, offsets = rows.new_roots[at], rows.result[at], rows.offsets_of(at)
-    pos, world, _ = leg_chain(roots, outputs, offsets)
+    chain = leg_chain(roots, outputs, offsets)
+    pos, world, _ = chain
     target = pos[:, :, 2].copy()
     target[..., [0, 2]] += rows.carry[at]
-    solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2])
+    solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2], chain)
     legs = LEG_INDEX[:, :3]
     eased = np.where(need[at], np.clip(size[at] / CARRY_EASE, 0.0, 1.0), 0.0)
     weight = np.broadcast_to(eased[:, :, None], solved.shape[:-1])
@@ -890,7 +892,8 @@ def _keep_above_floor(rows: _Rows) -> None:
     at = np.flatnonzero(free.any(axis=1))
     if not len(at):
         return
-    pos, _, _ = leg_chain(rows.new_roots[at], rows.result[at], rows.offsets_of(at))
+    everywhere = leg_chain(rows.new_roots[at], rows.result[at], rows.offsets_of(at))
+    pos = everywhere[0]
     floor, rest = rows.floor[at, None], rows.ankle_rest[at, None]
     near = free[at] & ((pos[:, :, 2, 1] < floor + rest + FLOOR_MARGIN) | (pos[:, :, 3, 1] < floor + FLOOR_MARGIN))
     keep = near.any(axis=1)
@@ -898,7 +901,8 @@ def _keep_above_floor(rows: _Rows) -> None:
     if not len(at):
         return
     roots, outputs, offsets = rows.new_roots[at], rows.result[at], rows.offsets_of(at)
-    pos, world, _ = leg_chain(roots, outputs, offsets)
+    chain = tuple(x[keep] for x in everywhere)
+    pos, world, _ = chain
     own_ankle, own_ball = rows.own[0][at, :, 1], rows.own[1][at, :, 1]
     up = np.maximum(
         _soft_floor(pos[:, :, 2, 1], np.minimum(floor + rest, own_ankle), own_ankle) - pos[:, :, 2, 1],
@@ -908,7 +912,7 @@ def _keep_above_floor(rows: _Rows) -> None:
         return
     target = pos[:, :, 2].copy()
     target[..., 1] += up
-    solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2])
+    solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2], chain)
     legs = LEG_INDEX[:, :3]
     # In by the lift needed, not at once: the solve moves a nearly straight knee even for
     # a lift of nothing (the hinge, the soft reach), and a leg switched in and out jumped.
