@@ -122,3 +122,21 @@ def test_restyle_starts_a_paced_clip_where_its_input_starts_and_writes_the_short
     out = restyle_rotations(q, lambda words: words, 4, roots=roots, skeleton=sk, contacts=settings)
     np.testing.assert_allclose(out.roots[0, [0, 2]], roots[0, [0, 2]], atol=1e-9)  # the mirrored lead-in taken off
     assert travel_speed(out.roots) == pytest.approx(0.8 * travel_speed(roots), rel=0.03)
+
+
+def test_a_root_that_jumps_back_resets_the_lag_and_the_feet_go_with_the_body():
+    """A looped clip starts over (or a tracker loses its origin): the avatar jumps with its
+    performer and the lag starts again from nothing, instead of a stride's worth of metres
+    left between the feet and the body."""
+    n = 200
+    z = 2.0 * (np.arange(n) % 100)  # walks 2 cm a frame for 100 frames, then jumps back 198 cm
+    roots = np.stack([np.zeros(n), np.full(n, 100.0), z], axis=1)
+    pace = Pace(replace(FEET["input"], pace=((2.0, 1.5), (6.0, 3.0))))  # 0.75 at a walk, 0.5 fast
+    body, feet = pace.track(roots, np.zeros((n, 2)))
+    assert body[99, 1] > 10.0  # the lag built up over the first pass
+    assert np.abs(body[100]).max() == 0.0 and np.abs(feet[100]).max() == 0.0  # reset at the jump
+    # the second pass lags as the first ended, settling on 0.25 of each 2 cm step: the jump
+    # did not enter the speed's low-pass (which would have read a fast pace, up to 0.5 of it)
+    before, after = np.diff(body[:100, 1]), np.diff(body[100:, 1])
+    assert after[0] == pytest.approx(before[-1], abs=0.005) and np.all(np.diff(after) >= 0)
+    assert after[-1] == pytest.approx(0.5, abs=0.01)
