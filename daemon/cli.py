@@ -71,7 +71,7 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--feet", default=None, metavar="auto|input|stance",
                    help="planted feet on the input's own ankles (input) or where the restyled legs stand "
                         "(stance: keeps a style's stance); default auto: the model's own (the pair model input, "
-                        "the multistyle model stance)")
+                        "the multistyle model stance, input for elderly or exhausted)")
     p.add_argument("--pace", default=None, metavar="style|input",
                    help="the avatar covers ground at the target style's pace (style, the default: it falls "
                         "behind a performer who walks on, and walking back takes it back) or at the "

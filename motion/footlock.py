@@ -194,9 +194,10 @@ class ContactSettings:
 # input's; a pair model keeps it unless its checkpoint names another. "stance": beside
 # them, where the restyled legs stand, turned as restyled (the knees bend as restyled in
 # both). The multi-style model reads most as its targets so (78.5 % on the judges' mean
-# over six against 57.8 %). For the pair default "input" reads better since its hips follow
-# within 2 frames (88.1 % against 75.4 % on the judges' mean, action 89.5 against 86.8 %), and
-# while planted the stance creeps 0.011-0.012 cm a frame in the standing actions against
+# over six against 57.8 %), but for elderly and exhausted (its ``feet_of_style``). For the
+# pair default "input" reads better since its hips follow within 2 frames (88.1 % against
+# 75.4 % on the judges' mean, action 89.5 against 86.8 %), and while planted the stance
+# creeps 0.011-0.012 cm a frame in the standing actions against
 # the input's 0.005 (2.2-2.6x). The stance's hips settle slower (8 frames): with 2 the
 # multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %) and popped more in
 # five styles of six, though active, elderly, exhausted and masculine gained 7-16 points.

@@ -20,6 +20,7 @@ from stylecast.models.restyler_multistyle import MultiStyleRestyler
 from stylecast.models.styles import STYLES, describe_mix, one_hot, parse_mix
 from stylecast.models.train_multistyle import MultiStyleTrainConfig, MultiStyleTrainer, train_multistyle
 from stylecast.motion.errors import UserError
+from stylecast.motion.footlock import FEET, feet_for
 from tests.test_models import synthetic_words
 
 TINY = MultiStyleConfig(g_hidden=16, g_blocks=1, d_hidden=8, code_dim=4)
@@ -186,6 +187,11 @@ def test_a_trained_checkpoint_loads_as_the_multistyle_kind(tmp_path):
     assert r.with_style("elderly:0.5,youthful:0.5").target_style == "elderly 0.50 + youthful 0.50"
     with pytest.raises(UserError, match="no directions"):
         r.with_direction("b2a")
+    # --feet auto: the stance, but on the input's ankles for a mix led by elderly or exhausted
+    assert r.feet == "stance" and r.with_style("youthful").feet == "stance"
+    assert r.with_style("elderly").feet == "input" and r.with_style("exhausted:0.6,feminine:0.4").feet == "input"
+    assert r.with_style("exhausted:0.4,feminine:0.6").feet == "stance"
+    assert feet_for("auto", r.with_style("elderly"), "input") == FEET["input"]
 
 
 def test_a_multistyle_checkpoint_with_foreign_styles_or_kind_is_refused(tmp_path):
