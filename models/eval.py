@@ -405,9 +405,9 @@ def travel_ceiling(source_clips, target_clips, target_windows, target_k: int, ju
                    weights: dict[str, int]) -> dict:
     """How well a restyle that keeps the input's travel can read as the target, at best.
 
-    stylecast never changes the root's horizontal path (an avatar stays where its performer
-    is), but the judges see a window's positions relative to the hips at its centre, travel
-    included, and some styles cover ground at their own speed (real exhausted runs at about
+    With ``--pace input`` stylecast keeps the root's horizontal path (an avatar stays where
+    its performer is), but the judges see a window's positions relative to the hips at its
+    centre, travel included, and some styles cover ground at their own speed (real exhausted runs at about
     0.8x the normal ones'). So real held-out target-style clips are judged twice: as they are,
     and with their root path covered at the mean speed of the source clips of the same action
     (``metrics.with_travel_speed``: path shape, timing and posture kept). The second is what a

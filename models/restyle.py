@@ -4,8 +4,9 @@ read -> ``Retarget.for_clip`` -> humanoid -> resample to 60 fps -> the shared wi
 blend stream code (``stylecast.motion.words.restyle_stream``, the same cutter and seam
 blender the daemon runs live) -> back to the output frame rate -> ``Retarget.to_source``
 with the original clip as template -> written with the input's skeleton and joint names.
-The root trajectory passes through, but for the pelvis height the foot lock sets
-(``motion.footlock``: the restyled legs' bend stands on the planted feet).
+The root trajectory is the input's but for what the foot lock sets (``motion.footlock``):
+the pelvis height (the restyled legs' bend stands on the planted feet) and, with
+``--pace style``, the style's pace over the ground.
 
 The live stream starts in pass-through and fades the restyled output in once the first
 word is due; an offline clip has no "before", so it is padded at the start (and the end)
