@@ -177,15 +177,18 @@ def table(title, header, rows):
 
 
 def make_daemon(n, hop, model, motion, port, bypass=False, duration_hint=0.0, latency="default", legacy=False,
-                worker=(0, 1)):
+                worker=(0, 1), pace="style"):
     """hop 0: the latency preset's hop and delay. ``legacy``: as before issue 12 (no model
     timing before the start, no slack planning while running). ``worker``: the daemon's
-    index among that many worker processes (``serve --workers``)."""
+    index among that many worker processes (``serve --workers``). ``pace``: ``serve
+    --pace``; a receiver that reads the frame index off the root's x needs "input" (the
+    style's pace shortens the path, so x no longer says which frame it is)."""
     from stylecast.motion.clock import RealClock
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
 
-    cfg = DaemonConfig(hop=hop, latency=latency, control="off", out=[f"vmc://127.0.0.1:{port}"], bypass=bypass)
+    cfg = DaemonConfig(hop=hop, latency=latency, control="off", out=[f"vmc://127.0.0.1:{port}"], bypass=bypass,
+                       pace=pace)
     sources = [indexed_source(motion, f"p{k}") for k in range(n)]
     d = Daemon(cfg, sources, model, RealClock(), log_status=False, worker=worker)
     if legacy:
@@ -212,7 +215,7 @@ def bench_latency(model, motion, seconds=8.0):
     for hop in (1, 5, 15, 60):
         port = free_ports(1)
         rx = Receiver([port], decode_index=True)
-        d = make_daemon(1, hop, model, motion, port)
+        d = make_daemon(1, hop, model, motion, port, pace="input")  # the receiver reads the index off x
         lat = run_and_time(d, rx, seconds)
         own = d.sessions[0].latency
         goal = hop / FPS * 1e3 + 5
@@ -232,7 +235,7 @@ def bench_presets(model, motion, n=8, seconds=8.0):
                                               ("--latency low", 0, "low", False, 35.0)):
         port = free_ports(n)
         rx = Receiver([port + k for k in range(n)], decode_index=True)
-        d = make_daemon(n, hop, model, motion, port, latency=latency, legacy=legacy)
+        d = make_daemon(n, hop, model, motion, port, latency=latency, legacy=legacy, pace="input")  # index off x
         lat = run_and_time(d, rx, seconds)
         p99 = np.percentile(lat, 99)
         late = sum(s.blender.late_frames for s in d.sessions)
