@@ -37,7 +37,7 @@ overall and per action:
 * seam ratio (METHOD.md) of the blended output, and of plain 60-frame words for contrast;
 * the travel ceiling (``travel_ceiling``): real target-style clips judged with their root
   path covered at the source clips' speed, what a restyle that keeps the input's travel
-  (as stylecast's does) could read at best.
+  (``--pace input``) could read at best.
 """
 
 from __future__ import annotations
@@ -407,8 +407,9 @@ def travel_ceiling(source_clips, target_clips, target_windows, target_k: int, ju
 
     With ``--pace input`` stylecast keeps the root's horizontal path (an avatar stays where
     its performer is), but the judges see a window's positions relative to the hips at its
-    centre, travel included, and some styles cover ground at their own speed (real exhausted runs at about
-    0.8x the normal ones'). So real held-out target-style clips are judged twice: as they are,
+    centre, travel included, and some styles cover ground at their own speed (real exhausted
+    runs at about 0.8x the normal ones'). So real held-out target-style clips are judged
+    twice: as they are,
     and with their root path covered at the mean speed of the source clips of the same action
     (``metrics.with_travel_speed``: path shape, timing and posture kept). The second is what a
     perfect restyle could read through a lock on the input's travel. Per action, and overall
