@@ -39,13 +39,10 @@ def pace_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, 
     ``target`` (style -> weight, summing to 1): (input speed, output speed) in cm a frame
     at the stream's rate, one point for walks and one for runs; () where a style's pace is
     not known (the input's pace is kept)."""
-    if source not in PACES or not target or any(s not in PACES for s, w in target.items() if w > 0):
+    mix = {style: weight for style, weight in target.items() if weight > 0}
+    if source not in PACES or not mix or any(style not in PACES for style in mix):
         return ()
-    out = np.zeros(2)
-    for style, weight in target.items():
-        if weight > 0:
-            out += weight * np.asarray(PACES[style])
-    out /= sum(w for w in target.values() if w > 0)
+    out = sum(weight * np.asarray(PACES[style]) for style, weight in mix.items()) / sum(mix.values())
     return tuple((float(a) / OUTPUT_FPS, float(b) / OUTPUT_FPS) for a, b in zip(PACES[source], out))
 
 

@@ -3,8 +3,8 @@ each planted foot of the restyled output back where the input put it.
 
 A restyle changes every bone's rotation, hips and legs included, while the root
 trajectory is the input's (but for the pelvis height and the pace below): without a fix, a
-foot the performer keeps still on the floor drifts with the restyled hips and knees (the first shipped model slid planted feet by
-1 cm per frame, 13x the input). This stage runs after the seam blender on every output
+foot the performer keeps still on the floor drifts with the restyled hips and knees (the
+first shipped model slid planted feet by 1 cm per frame, 13x the input). This stage runs after the seam blender on every output
 frame, live and offline alike (``SeamBlender`` -> ``FootLock.apply``), so ``restyle``
 and ``serve`` send the same frames.
 
@@ -197,8 +197,8 @@ class ContactSettings:
 # over six against 57.8 %), but for elderly and exhausted (its ``feet_of_style``). For the
 # pair default "input" reads better since its hips follow within 2 frames (88.1 % against
 # 75.4 % on the judges' mean, action 89.5 against 86.8 %), and while planted the stance
-# creeps 0.011-0.012 cm a frame in the standing actions against
-# the input's 0.005 (2.2-2.6x). The stance's hips settle slower (8 frames): with 2 the
+# creeps 0.011-0.012 cm a frame in the standing actions against the input's 0.005
+# (2.2-2.6x). The stance's hips settle slower (8 frames): with 2 the
 # multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %) and popped more in
 # five styles of six, though active, elderly, exhausted and masculine gained 7-16 points.
 # "auto", the default, takes the model's own (``Restyler.feet``; figures in
