@@ -68,6 +68,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-style", type=float, default=0.0,
                    help="weight of the loss that makes the restyle read as the target among all seven styles "
                         "(a frozen style classifier's cross-entropy); default 0 = off")
+    p.add_argument("--mirror", action="store_true",
+                   help="train on every take and its left-right mirror image (a left turn mirrored is a right "
+                        "turn); the epoch's size is unchanged")
     p.add_argument("--feet", metavar="input|stance",
                    help="the foot lock `serve` and `restyle` use with this model under --feet auto, recorded in "
                         "the checkpoint (default: its kind's own, input for a pair, stance for --styles all)")
@@ -188,7 +191,7 @@ def run_train_multistyle(args) -> int:
         raise UserError(f"--knots: {exc}") from None
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
                                 max_words=args.max_words, lambda_identity=args.lambda_identity,
-                                lambda_action=args.lambda_action, network=net, feet=args.feet,
+                                lambda_action=args.lambda_action, network=net, feet=args.feet, mirror=args.mirror,
                                 **_given(ema=args.ema, epochs=args.epochs, words_per_epoch=args.words_per_epoch))
     train, val, actions = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
     train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress,
@@ -217,7 +220,7 @@ def run_train(args) -> int:
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
                       lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
-                      lambda_style=args.lambda_style, feet=args.feet, **_given(ema=args.ema))
+                      lambda_style=args.lambda_style, feet=args.feet, mirror=args.mirror, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
     if args.style_a == args.style_b:

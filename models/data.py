@@ -20,7 +20,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +28,7 @@ import numpy as np
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
 from stylecast.motion.humanoid import RETARGET_VERSION
+from stylecast.motion.mirror import mirror_rotations
 from stylecast.motion.words import WORD_LENGTH  # the one definition of a word's length
 
 from . import representation as R
@@ -61,6 +62,7 @@ class MotionFile:
     action: str
     style: str
     take: int
+    mirrored: bool = False  # the take's left-right mirror image (``mirror_file``), for training only
 
     @property
     def name(self) -> str:
@@ -213,6 +215,30 @@ class WordSet:
         return out
 
 
+def mirror_action(action: str) -> str:
+    """The action a mirror image performs: walk-turn-left <-> walk-turn-right, the one-hand
+    raises and waves likewise; every other action is its own mirror image."""
+    swap = {"left": "right", "right": "left"}
+    return "-".join(swap.get(part, part) for part in action.split("-"))
+
+
+def mirror_file(file: MotionFile) -> MotionFile:
+    return replace(file, action=mirror_action(file.action), mirrored=not file.mirrored)
+
+
+def with_mirror(wordset: WordSet) -> WordSet:
+    """The words and, after them, their left-right mirror images (``motion.mirror``), each
+    image labelled with its mirrored take (so its action is the mirrored action and
+    ``next_words`` still finds the next word of the same take).
+
+    Why: a generator trained on both sides has no side to prefer. Trained on the takes as
+    recorded, the default restyle took left-turning walks for straight walks in 26.7 % of
+    windows and right-turning ones in 13.0 % (the input's own: 12.9 % and 5.6 %)."""
+    return WordSet(wordset.style, np.concatenate([wordset.words, mirror_rotations(wordset.words)]),
+                   np.concatenate([wordset.file_index, wordset.file_index + len(wordset.files)]),
+                   wordset.files + [mirror_file(f) for f in wordset.files])
+
+
 def next_words(wordset: "WordSet") -> np.ndarray:
     """For each word of a set cut in take order, the index of the next word of the same
     take (they overlap by length - hop frames), or -1 at the end of a take."""
@@ -244,10 +270,13 @@ def build_wordset(motions: list[HumanoidMotion], style: str, hop: int = 20,
 
 
 def load_wordset(style: str, split: str, data_dir=None, cache_dir=None, hop: int = 20,
-                 max_words: int | None = None, progress: bool = False) -> WordSet:
+                 max_words: int | None = None, progress: bool = False, mirror: bool = False) -> WordSet:
+    """One style's words of a split; with ``mirror``, followed by their mirror images
+    (``with_mirror``; ``max_words`` counts the recorded words)."""
     files = files_for_style(list_files(data_dir), style, split)
     if max_words is not None:
         # Spread a small subset over the takes deterministically instead of one action only.
         files = sorted(files, key=lambda f: hashlib.sha1(f.name.encode()).hexdigest())
     motions = load_motions(files, cache_dir, progress, max_words, hop)
-    return build_wordset(motions, style, hop, max_words)
+    words = build_wordset(motions, style, hop, max_words)
+    return with_mirror(words) if mirror else words

@@ -71,6 +71,7 @@ class TrainConfig:
     hop: int = 20
     max_words: int | None = None
     val_words: int = 256
+    mirror: bool = False  # train on the takes and their left-right mirror images (data.with_mirror)
     lambda_cycle: float = L.LAMBDA_CYCLE
     lambda_diff: float = L.LAMBDA_DIFF
     lambda_coherence: float = L.LAMBDA_COHERENCE
@@ -566,7 +567,9 @@ def load_training_words(cfg: TrainConfig, data_dir=None, cache_dir=None, progres
         for split in ("train", "val"):
             cap = cfg.max_words if split == "train" else (cfg.val_words if cfg.max_words is None else
                                                           min(cfg.val_words, cfg.max_words))
-            sets[(style, split)] = D.load_wordset(style, split, data_dir, cache_dir, cfg.hop, cap, progress)
+            # Held-out words stay as recorded: validation figures compare across recipes.
+            sets[(style, split)] = D.load_wordset(style, split, data_dir, cache_dir, cfg.hop, cap, progress,
+                                                  mirror=cfg.mirror and split == "train")
     log(f"loaded words in {time.perf_counter() - t0:.1f} s: " + ", ".join(
         f"{s}/{sp} {len(w)}" for (s, sp), w in sets.items()))
     return sets

@@ -294,7 +294,8 @@ def load_all_styles(cfg, data_dir=None, cache_dir=None, progress: bool = True,
     sets = {}
     per_val = max(1, cfg.val_words // len(STYLES))
     for s in STYLES:
-        sets[s, "train"] = D.load_wordset(s, "train", data_dir, cache_dir, cfg.hop, cfg.max_words, progress)
+        sets[s, "train"] = D.load_wordset(s, "train", data_dir, cache_dir, cfg.hop, cfg.max_words, progress,
+                                          mirror=cfg.mirror)
         cap = per_val if cfg.max_words is None else min(per_val, cfg.max_words)
         sets[s, "val"] = D.load_wordset(s, "val", data_dir, cache_dir, cfg.hop, cap, progress)
     log(f"loaded words in {time.perf_counter() - t0:.1f} s: "
