@@ -11,6 +11,7 @@ import numpy as np
 
 
 def _net(features: int, classes: int, hidden: int = 64):
+    """The convolutional classifier: three 5-frame convolutions, pooled over time."""
     from torch import nn
 
     return nn.Sequential(
@@ -19,6 +20,21 @@ def _net(features: int, classes: int, hidden: int = 64):
         nn.Conv1d(hidden, hidden, 5, padding=2, stride=2), nn.ReLU(),
         nn.AdaptiveAvgPool1d(1), nn.Flatten(), nn.Dropout(0.2), nn.Linear(hidden, classes),
     )
+
+
+def _recurrent_net(features: int, classes: int, hidden: int = 64):
+    """A bidirectional GRU over the frames, its states averaged over time: a judge of
+    another design, whose quirks are not the convolutions' (``judges.py``)."""
+    from torch import nn
+
+    from .recurrent import MeanGRU
+
+    return nn.Sequential(MeanGRU(2 * features, hidden), nn.Dropout(0.2), nn.Linear(2 * hidden, classes))
+
+
+# The judges' designs, by name (``WordClassifier(design=...)``). Every design ends in Dropout
+# and a Linear head over pooled features: ``embed`` reads the features before them.
+DESIGNS = {"conv": _net, "gru": _recurrent_net}
 
 
 def _inputs(x: np.ndarray, velocity_only: bool = False):
@@ -34,13 +50,14 @@ def _inputs(x: np.ndarray, velocity_only: bool = False):
 
 
 class WordClassifier:
-    def __init__(self, classes: list[str], features: int, seed: int = 0, velocity_only: bool = False):
+    def __init__(self, classes: list[str], features: int, seed: int = 0, velocity_only: bool = False,
+                 design: str = "conv"):
         import torch
 
         torch.manual_seed(seed)
         self.classes = list(classes)
-        self.net = _net(features, len(classes))
-        self.seed = seed
+        self.net = DESIGNS[design](features, len(classes))
+        self.seed, self.design = seed, design
         self.velocity_only = velocity_only
 
     def fit(self, x: np.ndarray, y: np.ndarray, epochs: int = 12, batch: int = 64, lr: float = 2e-3) -> "WordClassifier":
@@ -73,7 +90,7 @@ class WordClassifier:
         return self.probabilities(x, batch).argmax(axis=1)
 
     def embed(self, x: np.ndarray, batch: int = 512) -> np.ndarray:
-        """Penultimate features (N, hidden): the pooled convolution output."""
+        """Penultimate features (N, pooled width): the pooled output before the head."""
         import torch
 
         trunk = self.net[:-2]  # drop Dropout and the Linear head

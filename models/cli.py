@@ -29,7 +29,7 @@ def _unit(s: str) -> float:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .judges import DYNAMICS_PANEL, PANEL  # no torch at import time
+    from .judges import DYNAMICS_PANEL, PANEL, RECURRENT_PANEL  # no torch at import time
 
     p = sub.add_parser("train", help="train a CycleGAN restyler between two styles of the Bandai dataset-2")
     p.add_argument("--style-a", default="normal", help="style A (default normal)")
@@ -130,7 +130,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threads", type=_positive_int)
     p.add_argument("--seed", type=int, default=0, help="seed of the first judge of each kind (the others: seed+1, ...)")
     p.add_argument("--judges", type=_positive_int, default=PANEL,
-                   help=f"judges of each kind in the panel (default {PANEL}); the goals are read on the worst")
+                   help=f"convolutional judges of each kind in the panel (default {PANEL}); the goals are read on "
+                        "the worst judge of the panel")
+    p.add_argument("--recurrent-judges", type=_count, default=RECURRENT_PANEL,
+                   help=f"recurrent (GRU) judges of each kind beside them, another design with other quirks "
+                        f"(default {RECURRENT_PANEL}; 0: none)")
     p.add_argument("--dynamics-judges", type=_count, default=DYNAMICS_PANEL,
                    help=f"style judges that see only velocities, a stricter style goal (default {DYNAMICS_PANEL}; "
                         "0: none)")
@@ -280,6 +284,7 @@ def run_eval(args) -> int:
     _threads(args.threads)
     path = evaluate(args.model, args.out, variants, max_files=args.max_files, hop=args.hop or DEFAULT_HOP,
                     data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction,
-                    targets=args.target, source=args.source, panel=args.judges, dynamics=args.dynamics_judges)
+                    targets=args.target, source=args.source, panel=args.judges, dynamics=args.dynamics_judges,
+                    recurrent=args.recurrent_judges)
     print(f"wrote {path}")
     return 0

@@ -58,7 +58,7 @@ from . import data as D
 from . import metrics as M
 from . import representation as R
 from .baselines import PostureRestyler
-from .judges import DYNAMICS_PANEL, PANEL, Judges, judge_windows, training_motions
+from .judges import DYNAMICS_PANEL, PANEL, RECURRENT_PANEL, Judges, judge_windows, training_motions
 from .restyle import padding, restyle_rotations
 from .restyler import Restyler
 
@@ -238,12 +238,14 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
 def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str] | None = None,
              max_files: int | None = None, hop: int = DEFAULT_HOP, data_dir=None, cache_dir=None,
              seed: int = 0, direction: str = "a2b", log=print, targets: list[str] | None = None,
-             source: str | None = None, panel: int = PANEL, dynamics: int = DYNAMICS_PANEL) -> Path:
+             source: str | None = None, panel: int = PANEL, dynamics: int = DYNAMICS_PANEL,
+             recurrent: int = RECURRENT_PANEL) -> Path:
     """Evaluate ``model`` towards each of ``targets`` (default: the model's own target; a
     multi-style model needs them named). One target: the report in ``out``; several: one
     folder per target under ``out`` and ``out/summary.md`` beside them. The judges (a panel
-    of ``panel`` of each kind, seeds ``seed``, ``seed + 1``, ..., and ``dynamics`` style judges
-    that see only velocities) are trained once and shared. ``source``: the style of the
+    of ``panel`` conv judges of each kind, seeds ``seed``, ``seed + 1``, ..., ``recurrent`` GRU
+    judges of each kind, and ``dynamics`` style judges that see only velocities) are trained once
+    and shared. ``source``: the style of the
     held-out clips restyled (default the model's source; normal for a multi-style model,
     which takes any)."""
     import torch
@@ -277,7 +279,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
 
     torch.manual_seed(seed)
     per_style = None if max_files is None else 6 * max_files
-    judges = Judges(styles, actions, seed, panel, dynamics).fit(training_motions(files, styles, per_style, cache_dir), skeleton, log)
+    judges = Judges(styles, actions, seed, panel, dynamics, recurrent).fit(training_motions(files, styles, per_style, cache_dir), skeleton, log)
     held = {s: D.load_motions(D.files_for_style(files, s, "val")[:max_files], cache_dir) for s in styles}
     real = {s: [judge_windows(m.rotations, m.root_positions, skeleton) for m in held[s]] for s in styles}
     # The judges on real held-out windows of every style: how far they can be trusted.
@@ -388,7 +390,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
 
     metrics = {"model": str(proposed.path), "source": source, "target": target, "hop": hop,
                "held_out_files": {s: len(held[s]) for s in styles}, "judges": judge_check,
-               "judge_seeds": judges.seeds, "dynamics_judge_seeds": judges.dynamics_seeds,
+               "judge_seeds": judges.seeds, "judge_panel": judges.describe(),
+               "dynamics_judge_seeds": judges.dynamics_seeds,
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
                "real_target_jerk_ratio": real_jerk, "travel_ceiling": ceiling, "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0}

@@ -61,6 +61,15 @@ def goal_values(overall: dict, floors: list[float]) -> dict:
     return values
 
 
+def _panel(m: dict) -> str:
+    """The judge panel's members; reports from before the GRU judges had conv judges only."""
+    return m.get("judge_panel") or ", ".join(f"conv {s}" for s in m.get("judge_seeds", [0]))
+
+
+def _panel_size(m: dict) -> int:
+    return len(_panel(m).split(", "))
+
+
 def fmd_floors(m: dict) -> list[float]:
     return m.get("fmd_floor_judges") or [m["fmd_floor"]]
 
@@ -92,11 +101,11 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
              "`live-from-start` = `serve` started on the clip (pass-through for the first word, then the fade-in: in "
              "these 2-9 s takes most of a clip). The goals are read on `stream`.", "",
              "## The judges", "",
-             f"A panel of {len(m.get('judge_seeds', [0]))} 7-style and as many 10-action classifiers (1-D conv over "
-             "world joint positions and velocities, in metres, relative to the hips at each window's centre and "
-             "facing +Z), one per seed (" + ", ".join(map(str, m.get("judge_seeds", [0]))) + "), trained on real "
-             "training-split windows of all styles. Figures read by the judges are the panel's mean with the worst "
-             "and best judge in brackets; the goals are read on the worst judge. "
+             f"A panel of {_panel_size(m)} 7-style and as many 10-action classifiers over world joint positions and "
+             "velocities, in metres, relative to the hips at each window's centre and facing +Z (design and seed: "
+             f"{_panel(m)}; conv: 1-D convolutions over time, gru: a bidirectional GRU over the frames), trained on "
+             "real training-split windows of all styles. Figures read by the judges are the panel's mean with the "
+             "worst and best judge in brackets; the goals are read on the worst judge. "
              f"{len(m.get('dynamics_judge_seeds', []))} dynamics judges (7-style classifiers of the same kind that "
              "see only the velocities) give a stricter style figure: a restyle of the posture alone cannot pass "
              "them. Accuracy on real held-out windows:", "",

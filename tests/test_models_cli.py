@@ -151,7 +151,7 @@ def test_restyle_refuses_a_corrupt_checkpoint(tmp_path, capsys):
 def test_eval_writes_a_report(tiny_run, tmp_path):
     model = str(tiny_run / "model.safetensors")
     assert main(["eval", "--model", model, "--variant", f"again={model}", "--out", str(tmp_path), "--max-files", "2",
-                 "--threads", "1", "--judges", "2", "--dynamics-judges", "1"]) == 0
+                 "--threads", "1", "--judges", "2", "--recurrent-judges", "1", "--dynamics-judges", "1"]) == 0
     report = (tmp_path / "report.md").read_text()
     for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
                     "Per action, stream", "What the action judge took each action's windows for",
@@ -170,13 +170,15 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     assert live_input["timing_sync"] == pytest.approx(1.0) and live_input["judged_target"] < 0.5
     # a one-epoch model is nearly the identity: far from the target on FMD, unlike real target windows
     assert results["proposed"]["stream"]["overall"]["fmd"] > metrics["fmd_floor"]
-    # two judges of each kind, seeds 0 and 1, each with its own figures and FMD space
-    assert metrics["judge_seeds"] == [0, 1] and len(metrics["fmd_floor_judges"]) == 2
+    # two conv judges of each kind, seeds 0 and 1, and a GRU judge, each with its own figures
+    # and FMD space
+    assert metrics["judge_panel"] == "conv 0, conv 1, gru 0" and "conv 0, conv 1, gru 0" in report
+    assert metrics["judge_seeds"] == [0, 1] and len(metrics["fmd_floor_judges"]) == 3
     proposed = results["proposed"]["stream"]["overall"]
     for key in ("judged_target", "action_kept", "fmd"):
-        assert len(proposed[f"{key}_judges"]) == 2
+        assert len(proposed[f"{key}_judges"]) == 3
         assert proposed[key] == pytest.approx(np.mean(proposed[f"{key}_judges"]))
-    assert all(len(j["style_accuracy_judges"]) == 2 for j in metrics["judges"].values())
+    assert all(len(j["style_accuracy_judges"]) == 3 for j in metrics["judges"].values())
     # one dynamics judge: its own style figure, a goal row and a column of the report
     assert metrics["dynamics_judge_seeds"] == [0] and len(proposed["judged_target_dynamics_judges"]) == 1
     assert all(len(j["dynamics_accuracy_judges"]) == 1 for j in metrics["judges"].values())
@@ -184,7 +186,7 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     # the travel ceiling: real target clips judged by every judge, as they are and at the input's pace
     ceiling = metrics["travel_ceiling"]
     assert set(ceiling["per_action"]) == set(results["input"]["stream"]["per_action"]) - set(ceiling["actions_missing"])
-    assert all(len(ceiling["overall"][k]) == 2 for k in ("as_is_judges", "source_travel_judges"))
+    assert all(len(ceiling["overall"][k]) == 3 for k in ("as_is_judges", "source_travel_judges"))
     assert (tmp_path / "fig_hand_foot.png").exists()
 
 
