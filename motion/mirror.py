@@ -4,8 +4,7 @@ A humanoid's local rotations are relative to a T-pose in world-aligned bone fram
 (``motion.humanoid``), and that T-pose is its own mirror image. So the mirror image of a
 motion (the reflection M = diag(-1, 1, 1) across the body's sagittal plane, X being the
 performer's left) is, bone by bone: the rotation of the bone on the other side, reflected.
-A rotation R reflects to M R M; for a quaternion with axis a that is the axis
-det(M) M a = (a_x, -a_y, -a_z) and the same angle, so (x, y, z, w) -> (x, -y, -z, w).
+A rotation R reflects to M R M, (x, y, z, w) -> (x, -y, -z, w) (``rotations.X_REFLECTION``).
 Forward kinematics of the result is the original's joint positions with x negated, up to
 the difference in length between a bone and its twin (``tests/test_mirror.py``).
 
@@ -18,9 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from .humanoid import HUMANOID_BONES
+from .rotations import X_REFLECTION
 
-# The reflection's sign pattern on (x, y, z, w); it is its own inverse.
-X_REFLECTION = np.array([1.0, -1.0, -1.0, 1.0])
 SIDES = ("Left", "Right")
 
 

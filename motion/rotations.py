@@ -5,7 +5,9 @@ Conventions (stated once, here):
 * Quaternions are stored (x, y, z, w), scalar last, as in VMC and scipy.
 * Internal space is BVH space: right-handed, Y up, the performer facing +Z in the T-pose
   (so the performer's left is +X), lengths in centimetres. Unity space (left-handed,
-  metres) exists only in ``motion.unity``; nothing else flips an axis.
+  metres) exists only in ``motion.unity``; the one other thing that flips an axis is the
+  performer's mirror image for training (``motion.mirror``). Both negate X, so both reflect
+  a quaternion with ``X_REFLECTION``.
 * Euler orders are written as BVH channel orders ("ZXY" = the channels Zrotation,
   Xrotation, Yrotation in that order) and mean intrinsic rotations applied in that order:
   R = Rz @ Rx @ Ry for "ZXY". That is scipy's upper-case (intrinsic) convention.
@@ -25,6 +27,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
+# A rotation R under the reflection M = diag(-1, 1, 1) becomes M R M: for a quaternion with
+# axis a and angle t, axis det(M) M a = (a_x, -a_y, -a_z) and the same angle, so (x, y, z, w)
+# -> (x, -y, -z, w). Its own inverse.
+X_REFLECTION = np.array([1.0, -1.0, -1.0, 1.0])
 
 
 def _flat(q: np.ndarray) -> tuple[Rotation, tuple[int, ...]]:

@@ -27,18 +27,21 @@ Forward kinematics in Unity space is the same formula (world = parent * local, p
 = parent position + parent rotation applied to the offset) with converted quantities,
 because M R M composes as R does (M M = I).
 
-Everything is vectorised over leading dimensions. Nothing else in stylecast flips an axis.
+Everything is vectorised over leading dimensions. The only other place that flips an axis is
+``motion.mirror`` (the performer's mirror image, for training), with the same reflection.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .rotations import X_REFLECTION
+
 METRES_PER_CM = 0.01
 _POSITION_TO_UNITY = np.array([-METRES_PER_CM, METRES_PER_CM, METRES_PER_CM])
 _POSITION_FROM_UNITY = np.array([-100.0, 100.0, 100.0])
 # Mirroring is an involution: the same sign pattern converts quaternions both ways.
-_QUATERNION_MIRROR = np.array([1.0, -1.0, -1.0, 1.0])
+_QUATERNION_MIRROR = X_REFLECTION
 
 
 def position_to_unity(p_cm: np.ndarray) -> np.ndarray:
