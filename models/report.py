@@ -70,6 +70,10 @@ def _panel_size(m: dict) -> int:
     return len(_panel(m).split(", "))
 
 
+def _ratio(v: float) -> str:
+    return f"{_num(v, 1)}×"
+
+
 def fmd_floors(m: dict) -> list[float]:
     return m.get("fmd_floor_judges") or [m["fmd_floor"]]
 
@@ -117,7 +121,9 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                      f"{_range(j.get('dynamics_accuracy_judges', []), _pct)} |")
     floors = fmd_floors(m)
     lines += ["", f"FMD floor (real {tgt} training windows vs real {tgt} held-out windows, each style judge's "
-              f"pooled features): **{_range(floors, _num)}**.", ""]
+              f"pooled features, in panel order): **{', '.join(_num(f) for f in floors)}**. The judges' feature "
+              "spaces have their own scales (a GRU's states are bounded), so FMD is shown over each judge's own "
+              "floor: the panel's mean ratio (the best and worst judge's).", ""]
     for setting in ("stream", "live-from-start"):
         prop = res["proposed"][setting]["overall"]
         met = goals_met(prop, floors)
@@ -135,7 +141,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                       "judge: the most a restyle that keeps the input's travel (`--pace input`) can be expected to read (see "
                       "\"The ceiling of a restyle that keeps the input's travel\")."]
         lines += ["", f"## All variants, {setting} (all actions)", "",
-                  "| variant | judged target | action kept | FMD | jerk all | jerk hands | jerk feet | "
+                  "| variant | judged target | action kept | FMD / floor | jerk all | jerk hands | jerk feet | "
                   "largest one-frame jerk / input's, worst clip (median) | slide cm/frame (ratio) | "
                   "feet below floor mean / p99 cm | sync | seam (/ input's) | judged target, dynamics |",
                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -143,7 +149,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
             o = r[setting]["overall"]
             jr = o["jerk_ratio"]
             lines.append(f"| {name} | {_range(_judges(o, 'judged_target'), _pct)} | "
-                         f"{_range(_judges(o, 'action_kept'), _pct)} | {_range(_judges(o, 'fmd'), _num)} | "
+                         f"{_range(_judges(o, 'action_kept'), _pct)} | {_range(fmd_ratios(o, floors), _ratio)} | "
                          f"{_num(jr['all'], 2)} | {_num(jr['hands'], 2)} | {_num(jr['feet'], 2)} | "
                          f"{_num(o.get('peak_jerk_ratio'), 2)} ({_num(o.get('peak_jerk_ratio_median'), 2)}) | "
                          f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
