@@ -65,6 +65,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-action", type=float, default=0.0,
                    help="weight of the loss that keeps the input's action (a frozen action classifier's "
                         "cross-entropy on the restyled words); default 0 = off")
+    p.add_argument("--action-view", choices=("channels", "positions"), default="channels",
+                   help="what the action-content classifier sees: the generator's channels (default) or the "
+                        "joints' positions by forward kinematics, as the evaluation's judges do (pair models)")
     p.add_argument("--lambda-style", type=float, default=0.0,
                    help="weight of the loss that makes the restyle read as the target among all seven styles "
                         "(a frozen style classifier's cross-entropy); default 0 = off")
@@ -214,17 +217,20 @@ def run_train(args) -> int:
     pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
     _check_generator(args.generator, args.styles)
     if args.styles == "all":
-        if args.lambda_style:
-            from stylecast.motion.errors import UserError
+        from stylecast.motion.errors import UserError
 
+        if args.lambda_style:
             raise UserError("--lambda-style is for a pair model; drop it or drop --styles all")
+        if args.action_view != "channels":
+            raise UserError("--action-view is for a pair model; drop it or drop --styles all")
         return run_train_multistyle(args)
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
                       lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
-                      lambda_style=args.lambda_style, feet=args.feet, mirror=args.mirror, **_given(ema=args.ema))
+                      lambda_style=args.lambda_style, feet=args.feet, mirror=args.mirror,
+                      action_view=args.action_view, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
     if args.style_a == args.style_b:
@@ -239,16 +245,18 @@ def run_train(args) -> int:
         raise UserError(f"--knots: {exc}") from None
     sets = load_training_words(cfg, args.data, args.cache, progress=not args.no_progress)
     from .content import ActionLabels
+    from . import data as D
     from .data import next_words
     from .style_target import load_style_words
 
     styles = (load_style_words(cfg, sets, args.data, args.cache, progress=not args.no_progress)
               if cfg.lambda_style > 0 else None)
+    skeleton = D.bandai_skeleton(D.list_files(args.data)) if cfg.action_view == "positions" else None
     a, b = sets[(cfg.style_a, "train")], sets[(cfg.style_b, "train")]
     train(cfg, args.out, a.words, b.words, sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,
           resume=args.resume, device=args.device, progress=not args.no_progress,
           next_a=next_words(a), next_b=next_words(b), actions=ActionLabels.of(sets),
-          styles=styles)
+          styles=styles, skeleton=skeleton)
     return 0
 
 

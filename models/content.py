@@ -30,6 +30,8 @@ from torch import nn
 
 from .classifier import _net
 from .losses import FPS
+from .networks import from_channels, to_channels
+from .representation_torch import DTYPE, TorchRepresentation, quat_to_matrix
 
 EPOCHS = 10
 BATCH = 64
@@ -41,6 +43,36 @@ def _with_velocity(x: torch.Tensor) -> torch.Tensor:
     """(B, F, T) channel words -> (B, 2F, T): values and per-second differences."""
     v = torch.diff(x, dim=2, prepend=x[:, :, :1]) * FPS
     return torch.cat([x, v], dim=1)
+
+
+class PositionView:
+    """Channel words (B, J*C, T) -> joint positions (B, J*3, T) in metres, relative to the
+    hips, by forward kinematics on ``skeleton``: what the evaluation's judges see
+    (``judges.judge_windows``, less the root's travel, which no word carries), differentiable,
+    so the generators answer to a classifier of that view (``train --action-view positions``).
+
+    Why: the channels classifier is satisfied while the judges are not. With it at weight
+    0.25 the default keeps raise-up-left-hand in 86 % of windows and walk-turn-left in 69 %
+    to the judges (the input: 100 % and 80 %); the judges see hands and feet in space, where
+    a small change of a shoulder's angle is a large change of the hand's path."""
+
+    def __init__(self, representation, skeleton, device):
+        self.rep = TorchRepresentation(representation, device)
+        self.parents = tuple(skeleton.parents)
+        self.offsets = torch.as_tensor(np.asarray(skeleton.offsets) / 100.0, dtype=DTYPE, device=device)
+        self.features = 3 * len(self.parents)
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        local = quat_to_matrix(self.rep.decode(from_channels(x, len(self.parents))))  # (B, T, J, 3, 3)
+        world, positions = [], []
+        for j, p in enumerate(self.parents):  # topological order, each step batched over words and frames
+            if p < 0:
+                world.append(local[..., j, :, :])
+                positions.append(torch.zeros_like(local[..., j, :, 0]))
+            else:
+                world.append(world[p] @ local[..., j, :, :])
+                positions.append(positions[p] + world[p] @ self.offsets[j])
+        return to_channels(torch.stack(positions, dim=-2).to(torch.float32))
 
 
 @dataclass
@@ -71,7 +103,9 @@ class FrozenClassifier:
     """A classifier of channel words, trained once and then frozen, and the loss the
     generators pay on it."""
 
-    def __init__(self, classes: list[str], features: int, seed: int, salt: int = ACTION_SALT):
+    def __init__(self, classes: list[str], features: int, seed: int, salt: int = ACTION_SALT, view=None):
+        """``view``: a function of channel words the classifier sees instead of them (a
+        ``PositionView``; ``features`` is then its width), or None."""
         # fork_rng: building and training the classifier draws nothing from the GAN's random
         # stream, so a run with the loss off is bit-identical to one without this module.
         self.seed, self.salt = seed, salt
@@ -80,6 +114,10 @@ class FrozenClassifier:
             self.net = _net(features, len(classes))
         self.classes = list(classes)
         self.accuracy: dict[str, float] = {}
+        self.view = view or (lambda x: x)
+
+    def _logits(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(_with_velocity(self.view(x)))
 
     def fit(self, x: torch.Tensor, y: np.ndarray, device) -> "FrozenClassifier":
         """``x``: (N, F, T) channel words on the CPU, ``y``: their class indices."""
@@ -98,7 +136,7 @@ class FrozenClassifier:
                 for i in range(0, len(order), BATCH):
                     idx = torch.from_numpy(order[i:i + BATCH])
                     opt.zero_grad(set_to_none=True)
-                    loss_fn(self.net(_with_velocity(x[idx].to(device))), labels[idx].to(device)).backward()
+                    loss_fn(self._logits(x[idx].to(device)), labels[idx].to(device)).backward()
                     opt.step()
                 sched.step()
         self.net.eval()
@@ -108,7 +146,7 @@ class FrozenClassifier:
 
     def predict(self, x: torch.Tensor, device, batch: int = 512) -> np.ndarray:
         with torch.no_grad():
-            return np.concatenate([self.net(_with_velocity(x[i:i + batch].to(device))).argmax(1).cpu().numpy()
+            return np.concatenate([self._logits(x[i:i + batch].to(device)).argmax(1).cpu().numpy()
                                    for i in range(0, len(x), batch)]) if len(x) else np.zeros(0, np.int64)
 
     def score(self, name: str, x: torch.Tensor, y: np.ndarray, device) -> float:
@@ -120,4 +158,4 @@ class FrozenClassifier:
     def loss(self, generated: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
         """Cross-entropy of the restyled words (B, F, T) against ``labels`` (B,): the input
         words' actions, or the target style."""
-        return nn.functional.cross_entropy(self.net(_with_velocity(generated)), labels)
+        return nn.functional.cross_entropy(self._logits(generated), labels)

@@ -115,6 +115,15 @@ def files_for_style(files: list[MotionFile], style: str, split: str = "train") -
     return chosen
 
 
+def bandai_skeleton(files: list[MotionFile]):
+    """The humanoid skeleton of the Bandai actors (every file shares one rig)."""
+    from stylecast.motion.bvh import read_bvh
+    from stylecast.motion.humanoid import Retarget
+
+    clip = read_bvh(files[0].path)
+    return Retarget.for_clip(clip).to_humanoid(clip).skeleton
+
+
 # --- decoding and caching -------------------------------------------------------------
 
 @dataclass(frozen=True)

@@ -55,6 +55,7 @@ from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD
 
 from . import data as D
+from .data import bandai_skeleton
 from . import metrics as M
 from . import representation as R
 from .baselines import PostureRestyler
@@ -114,15 +115,6 @@ def seam_ratio(ds: list[np.ndarray], masks: list[np.ndarray]) -> float:
 
 
 # --- loading ---------------------------------------------------------------------------------------
-
-def bandai_skeleton(files: list):
-    """The humanoid skeleton of the Bandai actors (every file shares one rig)."""
-    from stylecast.motion.bvh import read_bvh
-    from stylecast.motion.humanoid import Retarget
-
-    clip = read_bvh(files[0].path)
-    return Retarget.for_clip(clip).to_humanoid(clip).skeleton
-
 
 def _optional_model(name: str, log) -> Restyler | None:
     try:

@@ -39,7 +39,7 @@ from . import checkpoint as ckpt
 from . import data as D
 from . import losses as L
 from .averaging import WeightAverage
-from .content import ActionLabels, FrozenClassifier
+from .content import ActionLabels, FrozenClassifier, PositionView
 from .style_target import STYLE_SALT, StyleWords
 from .device import Determinism, pick_device
 from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
@@ -48,6 +48,7 @@ from .representation import euler_features, get_representation
 
 GENERATOR_PREFIXES = ("G_a2b.", "G_b2a.")
 AVERAGE_PREFIX = "average."  # the weight average's tensors in train_state.safetensors
+ACTION_VIEWS = ("channels", "positions")  # what the action-content classifier sees (content.py)
 CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
               "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "action_a2b", "action_b2a", "style_a2b",
               "style_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
@@ -78,6 +79,7 @@ class TrainConfig:
     lambda_gram: float = L.LAMBDA_GRAM
     lambda_overlap: float = 0.0  # overlapping words agree (losses.overlap_loss); 0 = off
     lambda_action: float = 0.0  # the restyle keeps the input's action (content.py); 0 = off
+    action_view: str = "channels"  # what its classifier sees: the generator's channels or joint positions
     lambda_style: float = 0.0  # the restyle reads as the target among all styles (style_target.py); 0 = off
     # The model written is the generators' weight average (averaging.py) with this decay; 0 =
     # the last weights. Measured over four seeds of the pair recipe (MODEL_CARD.md), the
@@ -164,15 +166,19 @@ class Trainer:
                  val_a: np.ndarray | None = None, val_b: np.ndarray | None = None, device: str = "auto",
                  reference: np.ndarray | None = None, next_a: np.ndarray | None = None,
                  next_b: np.ndarray | None = None, actions: ActionLabels | None = None,
-                 styles: StyleWords | None = None):
+                 styles: StyleWords | None = None, skeleton=None):
         """``next_a``/``next_b``: for each training word, the index of the next word of the
         same take (overlapping it by 60 - hop frames), or -1 (``data.next_words``).
         ``actions``: every word's action, needed when ``cfg.lambda_action`` > 0.
-        ``styles``: words of every style, needed when ``cfg.lambda_style`` > 0."""
+        ``styles``: words of every style, needed when ``cfg.lambda_style`` > 0.
+        ``skeleton``: the actors' humanoid skeleton, needed with ``cfg.action_view`` "positions"."""
         import torch
 
         if cfg.loss not in L.LOSS_KINDS:
             raise UserError(f"unknown loss {cfg.loss!r}; choose cycle-diff or coherence")
+        if cfg.action_view not in ACTION_VIEWS:
+            raise UserError(f"unknown action view {cfg.action_view!r}; choose {' or '.join(ACTION_VIEWS)}")
+        self.skeleton = skeleton
         if len(words_a) == 0 or len(words_b) == 0:
             raise UserError(f"no training words for style {cfg.style_a if len(words_a) == 0 else cfg.style_b}; "
                             f"check the data folder")
@@ -208,7 +214,13 @@ class Trainer:
         if actions is None:
             raise UserError("--lambda-action needs the action of every training word; train from the dataset folder")
         x = torch.cat([self._channels(self.words_a), self._channels(self.words_b)])
-        self.content = FrozenClassifier(actions.classes, x.shape[1], self.cfg.seed).fit(
+        view = None
+        if self.cfg.action_view == "positions":
+            if self.skeleton is None:
+                raise UserError("--action-view positions needs the actors' skeleton; train from the dataset folder")
+            view = PositionView(self.rep, self.skeleton, self.device)
+        self.content = FrozenClassifier(actions.classes, view.features if view else x.shape[1], self.cfg.seed,
+                                        view=view).fit(
             x, np.concatenate([actions.train[self.cfg.style_a], actions.train[self.cfg.style_b]]), self.device)
         if val_a is not None and val_b is not None and len(val_a) and len(val_b):
             self.content.score("val", torch.cat([self._channels(val_a), self._channels(val_b)]),
@@ -525,7 +537,7 @@ def finish(out: Path, cfg, final: dict, log) -> None:
 
 def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None, resume: bool = False,
           device: str = "auto", progress: bool = True, log=print, next_a=None, next_b=None,
-          actions: ActionLabels | None = None, styles: StyleWords | None = None) -> Trainer:
+          actions: ActionLabels | None = None, styles: StyleWords | None = None, skeleton=None) -> Trainer:
     """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -535,7 +547,8 @@ def train(cfg: TrainConfig, out: Path, words_a, words_b, val_a=None, val_b=None,
         _, meta = ckpt.read_checkpoint(out / "checkpoint.safetensors")
         ref = meta["representation"].get("reference")
         reference = None if ref is None else np.asarray(ref, dtype=np.float64)
-    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b, actions, styles)
+    trainer = Trainer(cfg, words_a, words_b, val_a, val_b, device, reference, next_a, next_b, actions, styles,
+                      skeleton)
     trainer.determinism.log = log
     if trainer.content is not None:
         log(f"action-content classifier: {len(trainer.content.classes)} actions, right on "

@@ -123,3 +123,52 @@ def test_load_all_styles_gives_each_word_the_action_of_its_take(bandai_root, tmp
     assert set(actions.classes) <= {"raise-up-both-hands", "raise-up-left-hand", "raise-up-right-hand", "run",
                                     "walk", "walk-turn-left", "walk-turn-right", "wave-both-hands",
                                     "wave-left-hand", "wave-right-hand"}
+
+
+def test_the_position_view_is_forward_kinematics_and_carries_gradients():
+    """``--action-view positions``: the classifier sees the joints where the judges see them
+    (metres, relative to the hips), computed in torch from the generator's channels. Against
+    the numpy forward kinematics the metrics use; a view with the bones' offsets in the wrong
+    unit (centimetres) is the known-bad case."""
+    from stylecast.models.content import PositionView
+    from stylecast.models.metrics import world_positions
+    from stylecast.models.networks import to_channels
+    from stylecast.models.representation import get_representation
+    from stylecast.motion.humanoid import humanoid_skeleton_default
+
+    skeleton = humanoid_skeleton_default()
+    words = synthetic_words(3, 7)
+    rep = get_representation("euler")
+    x = to_channels(torch.from_numpy(rep.encode(words))).requires_grad_(True)
+    view = PositionView(rep, skeleton, "cpu")
+    seen = view(x)
+    assert seen.shape == (3, view.features, 60) and view.features == 3 * len(skeleton)
+    expected = np.stack([world_positions(w, np.zeros((60, 3)), skeleton) for w in words]) / 100.0
+    got = seen.detach().transpose(1, 2).reshape(3, 60, -1, 3).numpy()
+    assert np.abs(got - expected).max() < 1e-5
+    wrong_unit = np.stack([world_positions(w, np.zeros((60, 3)), skeleton) for w in words])
+    assert np.abs(got - wrong_unit).max() > 0.5
+    seen.square().sum().backward()
+    assert torch.isfinite(x.grad).all() and x.grad.abs().sum() > 0
+
+
+def test_a_trainer_with_the_position_view_trains_and_needs_the_skeleton():
+    from stylecast.models.content import PositionView
+    from stylecast.motion.humanoid import humanoid_skeleton_default
+
+    a, b = synthetic_words(8, 1), synthetic_words(8, 2)
+    cfg = _tiny_cfg(lambda_action=1.0, action_view="positions")
+    trainer = Trainer(cfg, a, b, a[:4], b[:4], device="cpu", actions=_labels(8, 8),
+                      skeleton=humanoid_skeleton_default())
+    assert isinstance(trainer.content.view, PositionView)
+    assert trainer.run_epoch()["action_a2b"] > 0.0
+    with pytest.raises(UserError, match="needs the actors' skeleton"):
+        Trainer(cfg, a, b, a[:4], b[:4], device="cpu", actions=_labels(8, 8))
+    with pytest.raises(UserError, match="unknown action view 'angles'"):
+        Trainer(_tiny_cfg(action_view="angles"), a, b, device="cpu")
+
+
+def test_the_position_view_is_refused_for_a_multistyle_model_in_one_sentence(capsys, tmp_path):
+    assert main(["train", "--styles", "all", "--action-view", "positions", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "--action-view is for a pair model" in err and err.count("\n") == 1

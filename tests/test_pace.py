@@ -56,7 +56,7 @@ def held_out_walk():
 @needs_data
 @pytest.mark.parametrize("feet", ["input", "stance"])
 def test_at_a_slower_pace_a_walk_covers_less_ground_with_its_planted_feet_still(feet):
-    from stylecast.models.eval import bandai_skeleton
+    from stylecast.models.data import bandai_skeleton
 
     roots, q = held_out_walk()
     sk = bandai_skeleton(D.list_files(DATA))
@@ -113,7 +113,7 @@ def test_the_planned_mix_spells_out_each_run():
 
 @needs_data
 def test_restyle_starts_a_paced_clip_where_its_input_starts_and_writes_the_shorter_path():
-    from stylecast.models.eval import bandai_skeleton
+    from stylecast.models.data import bandai_skeleton
     from stylecast.models.restyle import restyle_rotations
 
     roots, q = held_out_walk()

@@ -21,7 +21,8 @@ from stylecast.models import checkpoint as ckpt
 from stylecast.models import data as D
 from stylecast.models import metrics as M
 from stylecast.models.classifier import WordClassifier
-from stylecast.models.eval import bandai_skeleton, frame_differences
+from stylecast.models.data import bandai_skeleton
+from stylecast.models.eval import frame_differences
 from stylecast.models.judges import judge_windows
 from stylecast.models.restyle import restyle_rotations
 from stylecast.models.restyler import Restyler
