@@ -65,7 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-action", type=float, default=0.0,
                    help="weight of the loss that keeps the input's action (a frozen action classifier's "
                         "cross-entropy on the restyled words); default 0 = off")
-    p.add_argument("--action-view", choices=("channels", "positions"), default="channels",
+    p.add_argument("--action-view", choices=("channels", "positions"), default="channels",  # train.ACTION_VIEWS
                    help="what the action-content classifier sees: the generator's channels (default) or the "
                         "joints' positions by forward kinematics, as the evaluation's judges do (pair models)")
     p.add_argument("--lambda-style", type=float, default=0.0,

@@ -52,9 +52,9 @@ PANEL = 3
 # Recurrent judges in each panel beside the convolutional ones: a bidirectional GRU over the
 # frames (``classifier._recurrent_net``), as right on real held-out windows (style 98.7-100 %,
 # action 88-96 %) but of another design, so a model cannot pass on the quirks that three
-# seeds of one design share. The mirrored seed-3 run below read exhausted in 67.7-90.9 % of
-# windows to the three conv judges and 94.1 % to the GRU judge; the default 92.1-96.0 % and
-# 92.1 %. The goals are read on the worst judge of either design.
+# seeds of one design share. A run trained on mirrored takes (MODEL_CARD.md) read exhausted
+# in 67.7-90.9 % of windows to the three conv judges and 94.1 % to the GRU judge; the default
+# 92.1-96.0 % and 92.1 %. The goals are read on the worst judge of either design.
 RECURRENT_PANEL = 1
 
 # Dynamics judges: 7-style classifiers of the same kind that see only the joints'
@@ -68,9 +68,10 @@ DYNAMICS_PANEL = 2
 
 
 class Judges:
-    """Panels of style and action classifiers trained on real windows of the training split,
-    one per seed (``seed``, ``seed + 1``, ...), and ``dynamics`` style classifiers that see
-    only velocities (seeds ``seed``, ...). The first of each is the judge reports had before
+    """Panels of style and action classifiers trained on real windows of the training split:
+    ``panel`` conv judges (seeds ``seed``, ``seed + 1``, ...) then ``recurrent`` GRU judges
+    (seeds ``seed``, ...), the ``members``; and ``dynamics`` style classifiers that see only
+    velocities (seeds ``seed``, ...). The first of each is the judge reports had before
     the panel (same seed, same figures on the same machine); its pooled features are the
     style space plotted."""
 

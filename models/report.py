@@ -71,7 +71,7 @@ def _panel_size(m: dict) -> int:
 
 
 def _ratio(v: float) -> str:
-    return f"{_num(v, 1)}×"
+    return f"{_num(v, 1)}×" if np.isfinite(v) else "n/a"
 
 
 def fmd_floors(m: dict) -> list[float]:

@@ -66,7 +66,7 @@ class MultiStyleTrainConfig(TrainConfig):
     def to_dict(self) -> dict:
         d = super().to_dict()
         for unused in ("style_a", "style_b", "loss", "lambda_coherence", "lambda_gram", "lambda_overlap",
-                       "lambda_style"):
+                       "lambda_style", "action_view"):
             d.pop(unused)
         return d
 
