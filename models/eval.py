@@ -116,6 +116,14 @@ def seam_ratio(ds: list[np.ndarray], masks: list[np.ndarray]) -> float:
 
 # --- loading ---------------------------------------------------------------------------------------
 
+def _torch_threads() -> int:
+    """The thread count the judges were trained with: it changes their float rounding, and
+    so their figures (v1 read 6 points higher to judges trained at two threads than at one)."""
+    import torch
+
+    return torch.get_num_threads()
+
+
 def _optional_model(name: str, log) -> Restyler | None:
     try:
         return Restyler.load(name)
@@ -386,7 +394,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "dynamics_judge_seeds": judges.dynamics_seeds,
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
                "real_target_jerk_ratio": real_jerk, "travel_ceiling": ceiling, "results": results,
-               "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0}
+               "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
+               "torch_threads": _torch_threads()}
     plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     from .report import write_report

@@ -70,6 +70,13 @@ def _panel_size(m: dict) -> int:
     return len(_panel(m).split(", "))
 
 
+def _threads_note(m: dict) -> str:
+    n = m.get("torch_threads")
+    return "" if n is None else (f"Trained with {n} torch thread{'s' if n != 1 else ''}: the judges' float rounding, "
+                                 "and so their figures, depend on the thread count; compare reports made with the "
+                                 "same count. ")
+
+
 def _ratio(v: float) -> str:
     return f"{_num(v, 1)}×" if np.isfinite(v) else "n/a"
 
@@ -110,6 +117,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
              f"{_panel(m)}; conv: 1-D convolutions over time, gru: a bidirectional GRU over the frames), trained on "
              "real training-split windows of all styles. Figures read by the judges are the panel's mean with the "
              "worst and best judge in brackets; the goals are read on the worst judge. "
+             + _threads_note(m) +
              f"{len(m.get('dynamics_judge_seeds', []))} dynamics judges (7-style classifiers of the same kind that "
              "see only the velocities) give a stricter style figure: a restyle of the posture alone cannot pass "
              "them. Accuracy on real held-out windows:", "",

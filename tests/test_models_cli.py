@@ -174,6 +174,8 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     # and FMD space
     assert metrics["judge_panel"] == "conv 0, conv 1, gru 0" and "conv 0, conv 1, gru 0" in report
     assert metrics["judge_seeds"] == [0, 1] and len(metrics["fmd_floor_judges"]) == 3
+    # the judges' thread count (--threads 1) is recorded: their figures depend on it
+    assert metrics["torch_threads"] == 1 and "Trained with 1 torch thread:" in report
     proposed = results["proposed"]["stream"]["overall"]
     for key in ("judged_target", "action_kept", "fmd"):
         assert len(proposed[f"{key}_judges"]) == 3
