@@ -244,9 +244,8 @@ def run_train(args) -> int:
     except ValueError as exc:
         raise UserError(f"--knots: {exc}") from None
     sets = load_training_words(cfg, args.data, args.cache, progress=not args.no_progress)
-    from .content import ActionLabels
     from . import data as D
-    from .data import next_words
+    from .content import ActionLabels
     from .style_target import load_style_words
 
     styles = (load_style_words(cfg, sets, args.data, args.cache, progress=not args.no_progress)
@@ -255,7 +254,7 @@ def run_train(args) -> int:
     a, b = sets[(cfg.style_a, "train")], sets[(cfg.style_b, "train")]
     train(cfg, args.out, a.words, b.words, sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,
           resume=args.resume, device=args.device, progress=not args.no_progress,
-          next_a=next_words(a), next_b=next_words(b), actions=ActionLabels.of(sets),
+          next_a=D.next_words(a), next_b=D.next_words(b), actions=ActionLabels.of(sets),
           styles=styles, skeleton=skeleton)
     return 0
 

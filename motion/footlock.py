@@ -4,9 +4,9 @@ each planted foot of the restyled output back where the input put it.
 A restyle changes every bone's rotation, hips and legs included, while the root
 trajectory is the input's (but for the pelvis height and the pace below): without a fix, a
 foot the performer keeps still on the floor drifts with the restyled hips and knees (the
-first shipped model slid planted feet by 1 cm per frame, 13x the input). This stage runs after the seam blender on every output
-frame, live and offline alike (``SeamBlender`` -> ``FootLock.apply``), so ``restyle``
-and ``serve`` send the same frames.
+first shipped model slid planted feet by 1 cm per frame, 13x the input). This stage runs
+after the seam blender on every output frame, live and offline alike (``SeamBlender`` ->
+``FootLock.apply``), so ``restyle`` and ``serve`` send the same frames.
 
 Contacts (``FootLock.push``, per input frame, in arrival order): a foot is planted when
 its ankle or its ball is near the floor and nearly still, with hysteresis (a higher bar
@@ -388,11 +388,11 @@ class Pace:
     in the training clips, walks at 0.94x), and the judges see it: real held-out exhausted
     runs given the normal pace read exhausted in 28 % of windows. So each horizontal step
     of the root is shortened by the pace's ratio at the input's low-passed speed (never
-    lengthened: ``MAX_PACE_RATIO``), in proportion to how much of the restyle is shown (the seam blender's mix: none
-    in pass-through, bypass or a late word's fade). The body falls behind its performer by
-    ``shift``, which walking back takes back (a constant ratio maps the performer's path
-    onto a smaller copy of it). The slowdown is low-passed too, so a new style, a new
-    intensity or a fade never steps the body's speed.
+    lengthened: ``MAX_PACE_RATIO``), in proportion to how much of the restyle is shown (the
+    seam blender's mix: none in pass-through, bypass or a late word's fade). The body falls
+    behind its performer by ``shift``, which walking back takes back (a constant ratio maps
+    the performer's path onto a smaller copy of it). The slowdown is low-passed too, so a
+    new style, a new intensity or a fade never steps the body's speed.
 
     A foot cannot simply go with the body: a planted foot would slide back. Each foot has
     its own shift: frozen while its lock holds it (the foot stays where it landed),
