@@ -190,7 +190,8 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
 
 def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_action: list[np.ndarray],
                actions_true: list[int], target: int, styles: list[str], actions: list[str],
-               windows_dynamics: list[np.ndarray] | None = None) -> dict:
+               windows_dynamics: list[np.ndarray] | None = None,
+               windows_short_action: list[np.ndarray] | None = None) -> dict:
     jin = np.concatenate([c["jerk_in"] for c in per_clip])
     jout = np.concatenate([c["jerk_out"] for c in per_clip])
     g_in, g_out = M.group_means(jin), M.group_means(jout)
@@ -199,11 +200,19 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
     # Votes are (judges, windows): every figure read by the judges is given per judge and
     # as the panel's mean (report.py reads the goals on the worst judge).
     pred = np.concatenate(windows_pred, axis=1) if windows_pred else np.zeros((1, 0), int)
-    act = np.concatenate(windows_action, axis=1) if windows_action else np.zeros((1, 0), int)
-    truth = np.concatenate([np.full(w.shape[1], a) for w, a in zip(windows_pred, actions_true)]) \
-        if windows_pred else np.zeros(0, int)
+
+    def kept_by_judge(votes: list[np.ndarray] | None) -> tuple[np.ndarray, list[float]]:
+        """Each judge's share of windows judged as their take's action (the action judges'
+        windows and the one-word ones differ in number)."""
+        if not votes:
+            return np.zeros((1, 0), int), []
+        act = np.concatenate(votes, axis=1)
+        truth = np.concatenate([np.full(w.shape[1], a) for w, a in zip(votes, actions_true)])
+        return act, [float(np.mean(a == truth)) for a in act] if act.shape[1] else []
+
     style_by_judge = [float(np.mean(p == target)) for p in pred] if pred.shape[1] else []
-    action_by_judge = [float(np.mean(a == truth)) for a in act] if act.shape[1] else []
+    act, action_by_judge = kept_by_judge(windows_action)
+    _, short_action_by_judge = kept_by_judge(windows_short_action)
     dyn = np.concatenate(windows_dynamics, axis=1) if windows_dynamics else np.zeros((0, 0), int)
     dynamics_by_judge = [float(np.mean(d == target)) for d in dyn] if dyn.shape[1] else []
     sync = [c["sync"] for c in per_clip if np.isfinite(c["sync"])]
@@ -216,6 +225,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "judged_as": {s: float(np.mean(pred == k)) for k, s in enumerate(styles)} if pred.shape[1] else {},
         "action_kept": float(np.mean(action_by_judge)) if action_by_judge else float("nan"),
         "action_kept_judges": action_by_judge,
+        "action_kept_short": float(np.mean(short_action_by_judge)) if short_action_by_judge else float("nan"),
+        "action_kept_short_judges": short_action_by_judge,
         "judged_target_dynamics": float(np.mean(dynamics_by_judge)) if dynamics_by_judge else float("nan"),
         "judged_target_dynamics_judges": dynamics_by_judge,
         "action_taken_as": {a: float(np.mean(act == k)) for k, a in enumerate(actions)} if act.shape[1] else {},
@@ -286,10 +297,16 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
     judge_check = {}
     for k, s in enumerate(styles):
         w = np.concatenate(real[s])
-        truth = np.concatenate([np.full(len(x), actions.index(m.file.action)) for x, m in zip(real[s], held[s])])
-        judge_check[s] = {"windows": int(len(w)),
+        long = [judges.action_windows(m.rotations, m.root_positions, skeleton) for m in held[s]]
+
+        def right(votes, windows):
+            truth = np.concatenate([np.full(len(x), actions.index(m.file.action)) for x, m in zip(windows, held[s])])
+            return [float(np.mean(v == truth)) for v in votes]
+
+        judge_check[s] = {"windows": int(len(w)), "action_windows": int(sum(len(x) for x in long)),
                           "style_accuracy_judges": [float(np.mean(v == k)) for v in judges.style_votes(w)],
-                          "action_accuracy_judges": [float(np.mean(v == truth)) for v in judges.action_votes(w)],
+                          "action_accuracy_judges": right(judges.action_votes(np.concatenate(long)), long),
+                          "short_action_accuracy_judges": right(judges.short_action_votes(w), real[s]),
                           "dynamics_accuracy_judges": [float(np.mean(v == k)) for v in judges.dynamics_votes(w)]}
     shared = dict(source=source, files=files, styles=styles, actions=actions, skeleton=skeleton, judges=judges, held=held,
                   real=real, judge_check=judge_check, per_style=per_style, cache_dir=cache_dir, hop=hop, log=log)
@@ -334,7 +351,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     outputs_for_plot: dict = {}
     for variant in build_variants(proposed, variants, posture, log, source):
         for setting, live, skip in SETTINGS:
-            per_clip, preds, acts, dyns, feats, ds, masks = [], [], [], [], [], [], []
+            per_clip, preds, acts, short_acts, dyns, feats, ds, masks = [], [], [], [], [], [], [], []
             for m in clips:
                 inp = m.rotations.astype(np.float64)
                 roots = m.root_positions.astype(np.float64)
@@ -352,20 +369,23 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                 per_clip.append(_clip_measures(inp, res, roots, out_roots, skeleton))
                 w = judge_windows(res, out_roots, skeleton)
                 preds.append(judges.style_votes(w))
-                acts.append(judges.action_votes(w))
+                acts.append(judges.action_votes(judges.action_windows(res, out_roots, skeleton)))
+                short_acts.append(judges.short_action_votes(w))
                 dyns.append(judges.dynamics_votes(w))
                 feats.append(judges.style_features(w))
                 ds.append(frame_differences(res))
                 masks.append(mask)
                 if setting == "stream":
                     outputs_for_plot.setdefault(variant.name, []).append((res, out_roots))
-            summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles, actions, dyns),
+            summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles, actions, dyns,
+                                             short_acts),
                        "per_action": {}}
             for a in sorted(set(act_idx)):
                 sel = [i for i, x in enumerate(act_idx) if x == a]
                 summary["per_action"][actions[a]] = _summarise([per_clip[i] for i in sel], [preds[i] for i in sel],
                                                                [acts[i] for i in sel], [a] * len(sel), target_k, styles,
-                                                               actions, [dyns[i] for i in sel])
+                                                               actions, [dyns[i] for i in sel],
+                                                               [short_acts[i] for i in sel])
             fmd = [M.frechet_distance(f, t) if len(f) > 1 else float("nan")
                    for f, t in zip((np.concatenate(per_judge) for per_judge in zip(*feats)), feats_target)]
             summary["overall"]["fmd_judges"] = fmd

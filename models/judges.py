@@ -7,6 +7,9 @@ hips face +Z there. The root's path inside the window is kept (a judge may notic
 restyled walk still walks at the input's speed: the root is passed through, and that is
 an honest limit of the restyle), the performer's place and facing in the room are not.
 The classifier (``classifier.WordClassifier``) sees these positions and their velocities.
+
+Style is judged over one motion word (60 frames, 1 s); actions over two seconds
+(``ACTION_WINDOW``), with the one-word action judges kept as a stricter reading.
 """
 
 from __future__ import annotations
@@ -21,17 +24,35 @@ from .metrics import world_positions
 WINDOW = 60
 JUDGE_HOP = 30  # windows overlap by half: more samples for the Frechet statistics
 
+# Frames an action judge sees (2 s at 60 fps). A turning walk turns for 1.5-2.5 s in the
+# middle of its take, with about a second of straight walking before and after (heading
+# change per 1 s window of held-out takes: 30-90 degrees in the turn, under 10 at either
+# end). One second of those straight parts is a walk whatever the take is called: one-word
+# judges read the unchanged normal input's actions right in only 90.9-93.5 % of windows (its
+# walks and turning walks 76-89 %, every other action 95-100 %), under the 93 % goal itself,
+# and what the default lost to them was straight windows of turning takes. Over two seconds
+# the same designs read the input right in 97.6 % (the issue's own judge: 98 %). They are
+# also more lenient (a one-hand raise moved towards a wave is a smaller part of a longer
+# window), so the one-word action judges stay in the report as a stricter reading.
+ACTION_WINDOW = 120
 
-def judge_windows(rotations: np.ndarray, roots: np.ndarray, skeleton, hop: int = JUDGE_HOP) -> np.ndarray:
-    """(T, J, 4) rotations and (T, 3) roots -> (N, 60, J, 3) judge inputs."""
+
+def judge_windows(rotations: np.ndarray, roots: np.ndarray, skeleton, hop: int = JUDGE_HOP,
+                  window: int = WINDOW) -> np.ndarray:
+    """(T, J, 4) rotations and (T, 3) roots -> (N, window, J, 3) judge inputs. A take
+    shorter than the window is judged once, its last frame held to fill the window."""
+    rotations, roots = np.asarray(rotations), np.asarray(roots)
+    if 0 < len(rotations) < window:
+        held = np.minimum(np.arange(window), len(rotations) - 1)
+        rotations, roots = rotations[held], roots[held]
     positions = world_positions(rotations, roots, skeleton) / 100.0
-    starts = np.arange(0, len(positions) - WINDOW + 1, hop)
+    starts = np.arange(0, len(positions) - window + 1, hop)
     if len(starts) == 0:
-        return np.zeros((0, WINDOW, positions.shape[1], 3), np.float32)
-    idx = starts[:, None] + np.arange(WINDOW)
-    words = positions[idx]  # (N, 60, J, 3)
+        return np.zeros((0, window, positions.shape[1], 3), np.float32)
+    idx = starts[:, None] + np.arange(window)
+    words = positions[idx]  # (N, window, J, 3)
     yaw = R.word_heading(np.asarray(rotations, np.float64)[idx])  # hips' facing at each centre frame
-    centre = words[:, WINDOW // 2 : WINDOW // 2 + 1, :1]  # (N, 1, 1, 3) hips at the centre frame
+    centre = words[:, window // 2 : window // 2 + 1, :1]  # (N, 1, 1, 3) hips at the centre frame
     c, s = np.cos(-yaw), np.sin(-yaw)
     rel = words - centre
     x = c[:, None, None] * rel[..., 0] + s[:, None, None] * rel[..., 2]
@@ -71,9 +92,11 @@ class Judges:
     """Panels of style and action classifiers trained on real windows of the training split:
     ``panel`` conv judges (seeds ``seed``, ``seed + 1``, ...) then ``recurrent`` GRU judges
     (seeds ``seed``, ...), the ``members``; and ``dynamics`` style classifiers that see only
-    velocities (seeds ``seed``, ...). The first of each is the judge reports had before
-    the panel (same seed, same figures on the same machine); its pooled features are the
-    style space plotted."""
+    velocities (seeds ``seed``, ...). The style judges see one-word windows
+    (``judge_windows``), the action judges ``ACTION_WINDOW`` frames (``action_windows``)
+    and the short action judges, the same members again, one-word windows. The first of
+    each is the judge reports had before the panel (same seed, same figures on the same
+    machine); its pooled features are the style space plotted."""
 
     def __init__(self, styles: list[str], actions: list[str], seed: int = 0, panel: int = PANEL,
                  dynamics: int = DYNAMICS_PANEL, recurrent: int = RECURRENT_PANEL):
@@ -87,6 +110,7 @@ class Judges:
         self.dynamics_seeds = [seed + k for k in range(dynamics)]
         self.style_panel: list[WordClassifier] = []
         self.action_panel: list[WordClassifier] = []
+        self.short_action_panel: list[WordClassifier] = []
         self.dynamics_panel: list[WordClassifier] = []
 
     @property
@@ -98,22 +122,33 @@ class Judges:
         return self.action_panel[0]
 
     def fit(self, motions: list, skeleton, log=print) -> "Judges":
-        x, ys, ya = [], [], []
-        for m in motions:
-            w = judge_windows(m.rotations, m.root_positions, skeleton)
-            x.append(w)
-            ys.append(np.full(len(w), self.styles.index(m.file.style)))
-            ya.append(np.full(len(w), self.actions.index(m.file.action)))
-        x, ys, ya = np.concatenate(x), np.concatenate(ys), np.concatenate(ya)
+        def windows_of(make):
+            w = [make(m.rotations, m.root_positions, skeleton) for m in motions]
+            labels = lambda of: np.concatenate([np.full(len(x), of(m)) for x, m in zip(w, motions)])
+            return (np.concatenate(w), labels(lambda m: self.styles.index(m.file.style)),
+                    labels(lambda m: self.actions.index(m.file.action)))
+
+        x, ys, ya = windows_of(judge_windows)
+        xa, _, ya_long = windows_of(self.action_windows)
         features = x.shape[2] * x.shape[3]
-        self.style_panel = [WordClassifier(self.styles, features, s, design=d).fit(x, ys) for d, s in self.members]
-        self.action_panel = [WordClassifier(self.actions, features, s, design=d).fit(x, ya) for d, s in self.members]
+
+        def panel(classes, windows, labels):
+            return [WordClassifier(classes, features, s, design=d).fit(windows, labels) for d, s in self.members]
+
+        self.style_panel = panel(self.styles, x, ys)
+        self.action_panel = panel(self.actions, xa, ya_long)
+        self.short_action_panel = panel(self.actions, x, ya)
         self.dynamics_panel = [WordClassifier(self.styles, features, s, velocity_only=True).fit(x, ys)
                                for s in self.dynamics_seeds]
-        log(f"{len(self.members)} style, {len(self.members)} action ({self.describe()}) and "
-            f"{len(self.dynamics_seeds)} dynamics judges trained on {len(x)} real training windows of "
-            f"{len(self.styles)} styles")
+        log(f"{len(self.members)} style, {len(self.members)} action ({ACTION_WINDOW} frames), as many one-word "
+            f"action ({self.describe()}) and {len(self.dynamics_seeds)} dynamics judges trained on {len(x)} real "
+            f"training windows ({len(xa)} of {ACTION_WINDOW} frames) of {len(self.styles)} styles")
         return self
+
+    @staticmethod
+    def action_windows(rotations: np.ndarray, roots: np.ndarray, skeleton) -> np.ndarray:
+        """What the action judges see: ``judge_windows`` of ``ACTION_WINDOW`` frames."""
+        return judge_windows(rotations, roots, skeleton, window=ACTION_WINDOW)
 
     def describe(self) -> str:
         """The panel's members, e.g. "conv 0, conv 1, conv 2, gru 0" (design and seed)."""
@@ -124,8 +159,12 @@ class Judges:
         return _votes(self.style_panel, windows)
 
     def action_votes(self, windows: np.ndarray) -> np.ndarray:
-        """(judges, N): each action judge's choice for each window."""
+        """(judges, N): each action judge's choice for each of ``action_windows``."""
         return _votes(self.action_panel, windows)
+
+    def short_action_votes(self, windows: np.ndarray) -> np.ndarray:
+        """(judges, N): each one-word action judge's choice for each of ``judge_windows``."""
+        return _votes(self.short_action_panel, windows)
 
     def dynamics_votes(self, windows: np.ndarray) -> np.ndarray:
         """(dynamics judges, N): each dynamics judge's style for each window (none: (0, N))."""

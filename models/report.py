@@ -11,7 +11,11 @@ import numpy as np
 # worst judge (judges.py says why). (name, metric key, test, shown goal)
 GOALS = (
     ("judged target style, worst judge", "judged_target", lambda v, m: v >= 0.90, ">= 90 %"),
-    ("action kept, worst judge", "action_kept", lambda v, m: v >= 0.93, ">= 93 %"),
+    ("action kept, worst judge (2 s windows)", "action_kept", lambda v, m: v >= 0.93, ">= 93 %"),
+    # Stricter than the issue (judges.ACTION_WINDOW): the same goal on one-word windows,
+    # where the unchanged input itself reads under 93 %. Absent from reports before it.
+    ("action kept, worst one-word judge (1 s windows; stricter than the issue)", "action_kept_short",
+     lambda v, m: v >= 0.93, ">= 93 %"),
     ("jerk ratio (all joints)", "jerk_all", lambda v, m: v <= 1.10, "<= 1.10"),
     # Stricter than the issue (metrics.peak_jerk_ratio): no clip's largest one-frame jerk
     # more than half again the input's, so a pop cannot hide in a clip's mean.
@@ -54,6 +58,8 @@ def goal_values(overall: dict, floors: list[float]) -> dict:
               "jerk_all": overall["jerk_ratio"]["all"], "slide_ratio": overall["slide_ratio"],
               "timing_sync": overall["timing_sync"], "seam_ratio_relative": overall["seam_ratio_relative"],
               "fmd_ratio": max(fmd_ratios(overall, floors))}
+    if overall.get("action_kept_short_judges"):
+        values["action_kept_short"] = min(overall["action_kept_short_judges"])
     if overall.get("judged_target_dynamics_judges"):
         values["judged_target_dynamics"] = min(overall["judged_target_dynamics_judges"])
     if "peak_jerk_ratio" in overall:  # (reports written before it have none)
@@ -116,16 +122,21 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
              "velocities, in metres, relative to the hips at each window's centre and facing +Z (design and seed: "
              f"{_panel(m)}; conv: 1-D convolutions over time, gru: a bidirectional GRU over the frames), trained on "
              "real training-split windows of all styles. Figures read by the judges are the panel's mean with the "
-             "worst and best judge in brackets; the goals are read on the worst judge. "
+             "worst and best judge in brackets; the goals are read on the worst judge. Style is judged over one "
+             "60-frame motion word (1 s); actions over 2 s windows, because a turning walk's take walks straight for "
+             "about a second before and after its turn, and one second of that is a walk whatever the take is "
+             "called; the same members judging actions over one word give a stricter reading beside it. "
              + _threads_note(m) +
              f"{len(m.get('dynamics_judge_seeds', []))} dynamics judges (7-style classifiers of the same kind that "
              "see only the velocities) give a stricter style figure: a restyle of the posture alone cannot pass "
              "them. Accuracy on real held-out windows:", "",
-             "| style | windows | judged as its style | action recognised | judged as its style, dynamics |",
-             "|---|---|---|---|---|"]
+             "| style | windows | judged as its style | action recognised (2 s) | action recognised (1 s) | "
+             "judged as its style, dynamics |",
+             "|---|---|---|---|---|---|"]
     for s, j in m["judges"].items():
         lines.append(f"| {s} | {j['windows']} | {_range(_judges(j, 'style_accuracy'), _pct)} | "
                      f"{_range(_judges(j, 'action_accuracy'), _pct)} | "
+                     f"{_range(j.get('short_action_accuracy_judges', []), _pct)} | "
                      f"{_range(j.get('dynamics_accuracy_judges', []), _pct)} |")
     floors = fmd_floors(m)
     lines += ["", f"FMD floor (real {tgt} training windows vs real {tgt} held-out windows, each style judge's "
@@ -149,15 +160,18 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                       "judge: the most a restyle that keeps the input's travel (`--pace input`) can be expected to read (see "
                       "\"The ceiling of a restyle that keeps the input's travel\")."]
         lines += ["", f"## All variants, {setting} (all actions)", "",
-                  "| variant | judged target | action kept | FMD / floor | jerk all | jerk hands | jerk feet | "
-                  "largest one-frame jerk / input's, worst clip (median) | slide cm/frame (ratio) | "
-                  "feet below floor mean / p99 cm | sync | seam (/ input's) | judged target, dynamics |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "| variant | judged target | action kept (2 s) | action kept (1 s) | FMD / floor | jerk all | "
+                  "jerk hands | jerk feet | largest one-frame jerk / input's, worst clip (median) | "
+                  "slide cm/frame (ratio) | feet below floor mean / p99 cm | sync | seam (/ input's) | "
+                  "judged target, dynamics |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for name, r in res.items():
             o = r[setting]["overall"]
             jr = o["jerk_ratio"]
             lines.append(f"| {name} | {_range(_judges(o, 'judged_target'), _pct)} | "
-                         f"{_range(_judges(o, 'action_kept'), _pct)} | {_range(fmd_ratios(o, floors), _ratio)} | "
+                         f"{_range(_judges(o, 'action_kept'), _pct)} | "
+                         f"{_range(o.get('action_kept_short_judges', []), _pct)} | "
+                         f"{_range(fmd_ratios(o, floors), _ratio)} | "
                          f"{_num(jr['all'], 2)} | {_num(jr['hands'], 2)} | {_num(jr['feet'], 2)} | "
                          f"{_num(o.get('peak_jerk_ratio'), 2)} ({_num(o.get('peak_jerk_ratio_median'), 2)}) | "
                          f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
@@ -171,7 +185,8 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
     for name, r in res.items():
         lines.append(f"| {name} | " + " | ".join(_pct(v) for v in r["stream"]["overall"]["judged_as"].values()) + " |")
     actions = list(next(iter(res.values()))["stream"]["per_action"])
-    for title, key, fmt in (("judged target", "judged_target", _pct), ("action kept", "action_kept", _pct),
+    for title, key, fmt in (("judged target", "judged_target", _pct), ("action kept (2 s)", "action_kept", _pct),
+                            ("action kept (1 s)", "action_kept_short", _pct),
                             ("jerk ratio, all joints", None, lambda v: _num(v, 2)),
                             ("planted-foot slide ratio", "slide_ratio", lambda v: _num(v, 2)),
                             ("timing sync", "timing_sync", lambda v: _num(v, 3))):
@@ -181,10 +196,10 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
             cells = []
             for a in actions:
                 o = r["stream"]["per_action"][a]
-                cells.append(fmt(o["jerk_ratio"]["all"] if key is None else o[key]))
+                cells.append(fmt(o["jerk_ratio"]["all"] if key is None else o.get(key)))
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
     for name in ("input", "proposed"):
-        lines += ["", f"## What the action judge took each action's windows for, stream, `{name}`", "",
+        lines += ["", f"## What the action judges took each action's 2 s windows for, stream, `{name}`", "",
                   "| action | " + " | ".join(actions) + " |", "|---|" + "---|" * len(actions)]
         for a in actions:
             row = res[name]["stream"]["per_action"][a].get("action_taken_as", {})
@@ -261,13 +276,14 @@ def write_summary(path: Path, model: str, per_target: dict, plots: list[str], se
              "the target >= 90 %, action kept >= 93 %, jerk ratio <= 1.10, planted-foot slide <= 1.5x the input's; "
              "what the judges read is read on the panel's worst judge (its mean in brackets).",
              "The dynamics column (worst dynamics judge, velocities only) is stricter than the bar.",
-             "", "| target | model | judged as target | action kept | jerk ratio | slide ratio | timing sync | "
-             "seam / input's | FMD / floor | judged as target, dynamics | bar met |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "The one-word action column (1 s windows, worst judge) is stricter than the bar's (2 s windows).",
+             "", "| target | model | judged as target | action kept (2 s) | action kept (1 s) | jerk ratio | slide ratio | "
+             "timing sync | seam / input's | FMD / floor | judged as target, dynamics | bar met |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in summary_rows(per_target, ("proposed", *others)):
         short = [k for k in BAR if not r["met"][k]]
         lines.append(f"| {r['target']} | {r['variant']} | {_pct(r['judged_target'])} ({_pct(r['judged_target_mean'])}) | "
-                     f"{_pct(r['action_kept'])} ({_pct(r['action_kept_mean'])}) | "
+                     f"{_pct(r['action_kept'])} ({_pct(r['action_kept_mean'])}) | {_pct(r.get('action_kept_short'))} | "
                      f"{_num(r['jerk_all'], 2)} | {_num(r['slide_ratio'], 2)} | {_num(r['timing_sync'], 3)} | "
                      f"{_num(r['seam_ratio_relative'], 3)} | {_num(r['fmd_ratio'], 1)} | "
                      f"{_pct(r.get('judged_target_dynamics'))} | {'yes' if not short else 'no: ' + ', '.join(short)} |")

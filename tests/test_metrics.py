@@ -280,3 +280,44 @@ def test_the_travel_ceiling_falls_for_a_style_told_by_its_pace_and_not_for_one_t
     # weighted by the restyled windows of each action both styles have: (3 * 0 + 1 * 1) / 4
     assert c["overall"]["as_is_judges"] == [1.0] and c["overall"]["source_travel_judges"] == [pytest.approx(0.25)]
     assert c["actions_missing"] == ["walk"]
+
+
+def _walk(turn_degrees: float, frames: int = 240):
+    """``smooth_motion`` walking at 80 cm/s along its heading; the heading holds for 1.5 s,
+    turns by ``turn_degrees`` over the next second, then holds: (rotations, roots)."""
+    q, _ = smooth_motion(frames)
+    t = np.arange(frames)
+    yaw = np.radians(turn_degrees) * np.clip((t - 90) / 60.0, 0.0, 1.0)
+    q = q.copy()
+    q[:, 0] = rot.multiply(rot.exp_map(np.stack([np.zeros_like(yaw), yaw, np.zeros_like(yaw)], -1)), q[:, 0])
+    step = np.stack([np.sin(yaw), np.zeros_like(yaw), np.cos(yaw)], -1) * 80 / 60.0
+    roots = np.concatenate([np.zeros((1, 3)), np.cumsum(step, axis=0)[:-1]]) + [0.0, 90.0, 0.0]
+    return q, roots
+
+
+def test_a_turning_take_starts_as_a_walk_in_one_word_and_not_in_an_action_window():
+    """Why the action judges see 2 s (``judges.ACTION_WINDOW``): a turning take that walks
+    straight before its turn gives a first one-word window identical to a straight walk's,
+    which no judge can tell apart, while its first action window holds the turn's start."""
+    from stylecast.models.judges import ACTION_WINDOW, Judges, judge_windows
+
+    sk = humanoid_skeleton_default()
+    straight, turning = _walk(0.0), _walk(90.0)
+    one_word = judge_windows(*straight, sk), judge_windows(*turning, sk)
+    np.testing.assert_array_equal(one_word[0][0], one_word[1][0])
+    assert np.abs(one_word[0][-1] - one_word[1][-1]).max() < 1e-6  # after the turn: a straight walk again
+    long = Judges.action_windows(*straight, sk), Judges.action_windows(*turning, sk)
+    assert long[0].shape[1] == ACTION_WINDOW == 120
+    assert np.abs(long[0][0] - long[1][0]).max() > 0.1  # metres: the turn's start is in the window
+
+
+def test_a_take_shorter_than_the_window_is_judged_once_with_its_last_frame_held():
+    from stylecast.models.judges import judge_windows
+
+    sk = humanoid_skeleton_default()
+    q, roots = smooth_motion(100)
+    w = judge_windows(q, roots, sk, window=120)
+    assert w.shape[:2] == (1, 120)
+    np.testing.assert_array_equal(w[0, 100:], np.repeat(w[0, 99:100], 20, axis=0))
+    assert np.abs(np.diff(w[0, :100], axis=0)).min(axis=0).max() > 0  # the take's own frames move
+    assert judge_windows(q[:0], roots[:0], sk).shape[0] == 0

@@ -154,7 +154,7 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
                  "--threads", "1", "--judges", "2", "--recurrent-judges", "1", "--dynamics-judges", "1"]) == 0
     report = (tmp_path / "report.md").read_text()
     for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
-                    "Per action, stream", "What the action judge took each action's windows for",
+                    "Per action, stream", "What the action judges took each action's 2 s windows for",
                     "What the windows were taken for", "Real motion: jerk", "Seams",
                     "The ceiling of a restyle that keeps the input's travel"):
         assert section in report
@@ -177,10 +177,16 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     # the judges' thread count (--threads 1) is recorded: their figures depend on it
     assert metrics["torch_threads"] == 1 and "Trained with 1 torch thread:" in report
     proposed = results["proposed"]["stream"]["overall"]
-    for key in ("judged_target", "action_kept", "fmd"):
+    for key in ("judged_target", "action_kept", "action_kept_short", "fmd"):
         assert len(proposed[f"{key}_judges"]) == 3
         assert proposed[key] == pytest.approx(np.mean(proposed[f"{key}_judges"]))
-    assert all(len(j["style_accuracy_judges"]) == 3 for j in metrics["judges"].values())
+    for j in metrics["judges"].values():
+        assert len(j["style_accuracy_judges"]) == len(j["action_accuracy_judges"]) == 3
+        assert len(j["short_action_accuracy_judges"]) == 3
+        # 2 s action windows at the same hop: fewer than the one-word windows, never none
+        assert 0 < j["action_windows"] <= j["windows"]
+    # the issue's action goal on 2 s windows, and the stricter one-word reading beside it
+    assert "action kept, worst judge (2 s windows)" in report and "(1 s windows; stricter than the issue)" in report
     # one dynamics judge: its own style figure, a goal row and a column of the report
     assert metrics["dynamics_judge_seeds"] == [0] and len(proposed["judged_target_dynamics_judges"]) == 1
     assert all(len(j["dynamics_accuracy_judges"]) == 1 for j in metrics["judges"].values())
