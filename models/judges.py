@@ -39,12 +39,8 @@ ACTION_WINDOW = 120
 
 def judge_windows(rotations: np.ndarray, roots: np.ndarray, skeleton, hop: int = JUDGE_HOP,
                   window: int = WINDOW) -> np.ndarray:
-    """(T, J, 4) rotations and (T, 3) roots -> (N, window, J, 3) judge inputs. A take
-    shorter than the window is judged once, its last frame held to fill the window."""
-    rotations, roots = np.asarray(rotations), np.asarray(roots)
-    if 0 < len(rotations) < window:
-        held = np.minimum(np.arange(window), len(rotations) - 1)
-        rotations, roots = rotations[held], roots[held]
+    """(T, J, 4) rotations and (T, 3) roots -> (N, window, J, 3) judge inputs (none from a
+    take shorter than the window)."""
     positions = world_positions(rotations, roots, skeleton) / 100.0
     starts = np.arange(0, len(positions) - window + 1, hop)
     if len(starts) == 0:
@@ -147,7 +143,16 @@ class Judges:
 
     @staticmethod
     def action_windows(rotations: np.ndarray, roots: np.ndarray, skeleton) -> np.ndarray:
-        """What the action judges see: ``judge_windows`` of ``ACTION_WINDOW`` frames."""
+        """What the action judges see: ``judge_windows`` of ``ACTION_WINDOW`` frames. A take
+        shorter than that (held-out raises last 1.9-2.3 s) is judged once, its last frame
+        held to fill the window. (The style judges' one-word windows are not padded: one
+        training take of 53 frames padded to a window reshuffled their training and moved
+        their figures, 92.1 -> 95.8 % on the worst judge for the default, with nothing else
+        changed; MODEL_CARD.md.)"""
+        rotations, roots = np.asarray(rotations), np.asarray(roots)
+        if 0 < len(rotations) < ACTION_WINDOW:
+            held = np.minimum(np.arange(ACTION_WINDOW), len(rotations) - 1)
+            rotations, roots = rotations[held], roots[held]
         return judge_windows(rotations, roots, skeleton, window=ACTION_WINDOW)
 
     def describe(self) -> str:

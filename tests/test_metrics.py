@@ -311,13 +311,14 @@ def test_a_turning_take_starts_as_a_walk_in_one_word_and_not_in_an_action_window
     assert np.abs(long[0][0] - long[1][0]).max() > 0.1  # metres: the turn's start is in the window
 
 
-def test_a_take_shorter_than_the_window_is_judged_once_with_its_last_frame_held():
-    from stylecast.models.judges import judge_windows
+def test_a_take_shorter_than_an_action_window_is_judged_once_with_its_last_frame_held():
+    from stylecast.models.judges import Judges, judge_windows
 
     sk = humanoid_skeleton_default()
     q, roots = smooth_motion(100)
-    w = judge_windows(q, roots, sk, window=120)
+    w = Judges.action_windows(q, roots, sk)
     assert w.shape[:2] == (1, 120)
     np.testing.assert_array_equal(w[0, 100:], np.repeat(w[0, 99:100], 20, axis=0))
     assert np.abs(np.diff(w[0, :100], axis=0)).min(axis=0).max() > 0  # the take's own frames move
-    assert judge_windows(q[:0], roots[:0], sk).shape[0] == 0
+    assert Judges.action_windows(q[:0], roots[:0], sk).shape[0] == 0
+    assert judge_windows(q[:50], roots[:50], sk).shape[0] == 0  # one-word windows are not padded
