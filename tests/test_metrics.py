@@ -322,3 +322,26 @@ def test_a_take_shorter_than_an_action_window_is_judged_once_with_its_last_frame
     assert np.abs(np.diff(w[0, :100], axis=0)).min(axis=0).max() > 0  # the take's own frames move
     assert Judges.action_windows(q[:0], roots[:0], sk).shape[0] == 0
     assert judge_windows(q[:50], roots[:50], sk).shape[0] == 0  # one-word windows are not padded
+
+
+def test_the_action_goal_is_read_on_the_2s_judges_and_the_one_word_reading_stands_beside_it():
+    """The 2 s action windows and the one-word windows of a take differ in number; each is
+    scored against the take's action, and a one-word panel that misses fails its own
+    (stricter) row without touching the issue's."""
+    from stylecast.models.eval import _summarise
+    from stylecast.models.report import goal_values, goals_met
+
+    q, roots = smooth_motion()
+    clip = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    action = 1
+    style_votes = np.full((2, 8), 2)
+    long = np.full((2, 3), action)  # three 2 s windows, all kept
+    short = np.array([[action] * 8, [action] * 6 + [0, 0]])  # the second judge misses a quarter
+    overall = _summarise([clip], [style_votes], [long], [action], 2, ["a", "b", "c"], ["x", "y", "z"],
+                         windows_short_action=[short])
+    assert overall["action_kept_judges"] == [1.0, 1.0]
+    assert overall["action_kept_short_judges"] == [1.0, 0.75]
+    overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0, 1.0])
+    assert goal_values(overall, [1.0, 1.0])["action_kept_short"] == 0.75
+    met = goals_met(overall, [1.0, 1.0])
+    assert met["action_kept"] and not met["action_kept_short"]
