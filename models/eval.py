@@ -180,10 +180,11 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
 def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_roots: np.ndarray, skeleton) -> dict:
     p_in = M.world_positions(inp, roots, skeleton)
     p_out = M.world_positions(out, out_roots, skeleton)
-    planted = M.planted(p_in)
+    planted, held = M.planted(p_in), M.held(p_in)
     jerk_in, jerk_out = M.jerk(p_in), M.jerk(p_out)
     return {"jerk_in": jerk_in, "jerk_out": jerk_out,
             "slide_in": M.slide_samples(p_in, planted), "slide_out": M.slide_samples(p_out, planted),
+            "hold_in": M.hold_samples(p_in, held), "hold_out": M.hold_samples(p_out, held),
             "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
             "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out)}
 
@@ -197,6 +198,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
     g_in, g_out = M.group_means(jin), M.group_means(jout)
     s_in = np.concatenate([c["slide_in"] for c in per_clip])
     s_out = np.concatenate([c["slide_out"] for c in per_clip])
+    h_in = np.concatenate([c["hold_in"] for c in per_clip])
+    h_out = np.concatenate([c["hold_out"] for c in per_clip])
     # Votes are (judges, windows): every figure read by the judges is given per judge and
     # as the panel's mean (report.py reads the goals on the worst judge).
     pred = np.concatenate(windows_pred, axis=1) if windows_pred else np.zeros((1, 0), int)
@@ -238,6 +241,9 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "slide_input_cm_per_frame": float(s_in.mean()) if s_in.size else float("nan"),
         "slide_ratio": float(s_out.mean() / max(s_in.mean(), 1e-9)) if s_in.size else float("nan"),
         "planted_frames": int(s_in.size // 2),
+        "hold_cm_per_frame": float(h_out.mean()) if h_out.size else float("nan"),
+        "hold_input_cm_per_frame": float(h_in.mean()) if h_in.size else float("nan"),
+        "hold_ratio": float(h_out.mean() / max(h_in.mean(), 1e-9)) if h_in.size else float("nan"),
         "timing_sync": float(np.mean(sync)) if sync else float("nan"),
         "floor_penetration_cm": float(sink.mean()) if sink.size else float("nan"),
         "floor_penetration_p99_cm": float(np.percentile(sink, 99)) if sink.size else float("nan"),
@@ -336,13 +342,18 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
         f"{', '.join(f'{f:.3f}' for f in fmd_floors)} per judge ({time.perf_counter() - t0:.0f} s)")
 
     # Real target-style motion against real source-style motion of the same action.
-    real_jerk = {}
+    # (A take's own holds: real motion has no input to hold still against.)
+    real_jerk, real_hold = {}, {}
     for a in actions:
-        j = {s: [M.jerk(M.world_positions(m.rotations, m.root_positions, skeleton)) for m in held[s]
-                 if m.file.action == a] for s in (source, target)}
-        if j[source] and j[target]:
-            gs, gt = M.group_means(np.concatenate(j[source])), M.group_means(np.concatenate(j[target]))
+        pos = {s: [M.world_positions(m.rotations, m.root_positions, skeleton) for m in held[s] if m.file.action == a]
+               for s in (source, target)}
+        if pos[source] and pos[target]:
+            j = {s: np.concatenate([M.jerk(p) for p in pos[s]]) for s in pos}
+            gs, gt = M.group_means(j[source]), M.group_means(j[target])
             real_jerk[a] = {g: gt[g] / max(gs[g], 1e-12) for g in gs}
+            h = {s: np.concatenate([M.hold_samples(p, M.held(p)) for p in pos[s]]) for s in pos}
+            real_hold[a] = float(h[target].mean() / max(h[source].mean(), 1e-9)) if h[source].size and h[target].size \
+                else float("nan")
 
     clips = held[source]
     act_idx = [actions.index(m.file.action) for m in clips]
@@ -413,7 +424,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "judge_seeds": judges.seeds, "judge_panel": judges.describe(),
                "dynamics_judge_seeds": judges.dynamics_seeds,
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
-               "real_target_jerk_ratio": real_jerk, "travel_ceiling": ceiling, "results": results,
+               "real_target_jerk_ratio": real_jerk, "real_target_hold_ratio": real_hold, "travel_ceiling": ceiling, "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
                "torch_threads": _torch_threads()}
     plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)

@@ -15,6 +15,10 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   (``motion.footlock``), so the instrument does not share the fixer's blind spots.
 * slide: horizontal speed (cm/frame) of a foot joint of a motion in the frames where the
   input's foot is planted.
+* holds (``held``, ``hold_samples``): where the INPUT holds a hand or the head still
+  against the hips (below ``HOLD_SPEED``), how fast the output's moves there. A performer
+  who holds a pose expects the avatar to hold it; a slow drift of the correction moves a
+  held hand by centimetres while jerk, which sees only fast changes, stays at the input's.
 * floor penetration: how far a foot joint of the output sinks below the lowest the same
   joint goes in the input (the input's floor contact), per frame.
 * timing sync: Pearson correlation of per-frame body speed (mean over joints of speed
@@ -45,6 +49,10 @@ JOINT_GROUPS: dict[str, tuple[str, ...]] = {
 }
 PLANT_HEIGHT = 3.0  # cm above the lowest the joint goes in the clip
 PLANT_SPEED = 0.5  # cm per frame at 60 fps (30 cm/s)
+HOLD_JOINTS = ("LeftHand", "RightHand", "Head")
+# cm per frame at 60 fps (9 cm/s) against the hips: a hand held up in a held-out raise moves
+# 0.06 cm a frame on average, a raising or waving hand 1-4.
+HOLD_SPEED = 0.15
 
 
 def _index(names) -> list[int]:
@@ -114,6 +122,24 @@ def body_speed(positions: np.ndarray) -> np.ndarray:
     """(T, J, 3) -> (T-1,) mean joint speed relative to the Hips."""
     rel = positions - positions[:, :1]
     return np.linalg.norm(np.diff(rel, axis=0), axis=-1).mean(axis=1)
+
+
+def _speed_from_hips(positions: np.ndarray, joint: str) -> np.ndarray:
+    """(T, J, 3) -> (T-1,) distance a joint moves per frame relative to the Hips."""
+    rel = positions[:, HUMANOID_BONES.index(joint)] - positions[:, 0]
+    return np.linalg.norm(np.diff(rel, axis=0), axis=-1)
+
+
+def held(positions: np.ndarray) -> dict[str, np.ndarray]:
+    """Per ``HOLD_JOINTS`` joint, boolean (T-1,) over frame pairs: it moves less than
+    ``HOLD_SPEED`` against the hips from frame t-1 to t."""
+    return {j: _speed_from_hips(positions, j) < HOLD_SPEED for j in HOLD_JOINTS}
+
+
+def hold_samples(positions: np.ndarray, masks: dict[str, np.ndarray]) -> np.ndarray:
+    """Speeds against the hips of each held joint over its held frames (of the input:
+    ``masks`` from ``held(input)``), concatenated."""
+    return np.concatenate([_speed_from_hips(positions, j)[mask] for j, mask in masks.items()])
 
 
 def timing_sync(input_positions: np.ndarray, output_positions: np.ndarray) -> float:
