@@ -189,6 +189,16 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
             "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out)}
 
 
+def _mean_ratio(out: np.ndarray, inp: np.ndarray) -> float:
+    """Mean of ``out`` over mean of ``inp`` (samples of a measure), nan with no samples."""
+    return float(out.mean() / max(inp.mean(), 1e-9)) if inp.size and out.size else float("nan")
+
+
+def _window_labels(windows_per_take: list, labels: list[int]) -> np.ndarray:
+    """Each take's label repeated over its windows (``len`` of each entry), concatenated."""
+    return np.concatenate([np.full(len(w), a) for w, a in zip(windows_per_take, labels)])
+
+
 def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_action: list[np.ndarray],
                actions_true: list[int], target: int, styles: list[str], actions: list[str],
                windows_dynamics: list[np.ndarray] | None = None,
@@ -210,7 +220,7 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         if not votes:
             return np.zeros((1, 0), int), []
         act = np.concatenate(votes, axis=1)
-        truth = np.concatenate([np.full(w.shape[1], a) for w, a in zip(votes, actions_true)])
+        truth = _window_labels([v.T for v in votes], actions_true)  # votes are (judges, windows)
         return act, [float(np.mean(a == truth)) for a in act] if act.shape[1] else []
 
     style_by_judge = [float(np.mean(p == target)) for p in pred] if pred.shape[1] else []
@@ -239,11 +249,11 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "peak_jerk_ratio_median": float(np.median(peaks)) if peaks else float("nan"),
         "slide_cm_per_frame": float(s_out.mean()) if s_out.size else float("nan"),
         "slide_input_cm_per_frame": float(s_in.mean()) if s_in.size else float("nan"),
-        "slide_ratio": float(s_out.mean() / max(s_in.mean(), 1e-9)) if s_in.size else float("nan"),
+        "slide_ratio": _mean_ratio(s_out, s_in),
         "planted_frames": int(s_in.size // 2),
         "hold_cm_per_frame": float(h_out.mean()) if h_out.size else float("nan"),
         "hold_input_cm_per_frame": float(h_in.mean()) if h_in.size else float("nan"),
-        "hold_ratio": float(h_out.mean() / max(h_in.mean(), 1e-9)) if h_in.size else float("nan"),
+        "hold_ratio": _mean_ratio(h_out, h_in),
         "timing_sync": float(np.mean(sync)) if sync else float("nan"),
         "floor_penetration_cm": float(sink.mean()) if sink.size else float("nan"),
         "floor_penetration_p99_cm": float(np.percentile(sink, 99)) if sink.size else float("nan"),
@@ -306,7 +316,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
         long = [judges.action_windows(m.rotations, m.root_positions, skeleton) for m in held[s]]
 
         def right(votes, windows):
-            truth = np.concatenate([np.full(len(x), actions.index(m.file.action)) for x, m in zip(windows, held[s])])
+            truth = _window_labels(windows, [actions.index(m.file.action) for m in held[s]])
             return [float(np.mean(v == truth)) for v in votes]
 
         judge_check[s] = {"windows": int(len(w)), "action_windows": int(sum(len(x) for x in long)),
@@ -352,8 +362,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
             gs, gt = M.group_means(j[source]), M.group_means(j[target])
             real_jerk[a] = {g: gt[g] / max(gs[g], 1e-12) for g in gs}
             h = {s: np.concatenate([M.hold_samples(p, M.held(p)) for p in pos[s]]) for s in pos}
-            real_hold[a] = float(h[target].mean() / max(h[source].mean(), 1e-9)) if h[source].size and h[target].size \
-                else float("nan")
+            real_hold[a] = _mean_ratio(h[target], h[source])
 
     clips = held[source]
     act_idx = [actions.index(m.file.action) for m in clips]
