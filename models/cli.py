@@ -71,6 +71,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-style", type=float, default=0.0,
                    help="weight of the loss that makes the restyle read as the target among all seven styles "
                         "(a frozen style classifier's cross-entropy); default 0 = off")
+    p.add_argument("--lambda-hold", type=float, default=0.0,
+                   help="weight of the loss that keeps a hand or the head still where the input holds it still "
+                        "against the hips (pair models); default 0 = off")
     p.add_argument("--mirror", action="store_true",
                    help="train on every take and its left-right mirror image (a left turn mirrored is a right "
                         "turn); the epoch's size is unchanged")
@@ -223,20 +226,23 @@ def run_train(args) -> int:
             raise UserError("--lambda-style is for a pair model; drop it or drop --styles all")
         if args.action_view != "channels":
             raise UserError("--action-view is for a pair model; drop it or drop --styles all")
+        if args.lambda_hold:
+            raise UserError("--lambda-hold is for a pair model; drop it or drop --styles all")
         return run_train_multistyle(args)
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
                       lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
-                      lambda_style=args.lambda_style, feet=args.feet, mirror=args.mirror,
+                      lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, feet=args.feet, mirror=args.mirror,
                       action_view=args.action_view, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
     if args.style_a == args.style_b:
         raise UserError(f"--style-a and --style-b are both {args.style_a!r}; choose two different styles")
     for flag, value in (("--lambda-gram", args.lambda_gram), ("--lambda-overlap", args.lambda_overlap),
-                        ("--lambda-action", args.lambda_action), ("--lambda-style", args.lambda_style)):
+                        ("--lambda-action", args.lambda_action), ("--lambda-style", args.lambda_style),
+                        ("--lambda-hold", args.lambda_hold)):
         if not value >= 0:
             raise UserError(f"{flag} must be 0 or more, got {value:g}")
     try:
@@ -250,7 +256,8 @@ def run_train(args) -> int:
 
     styles = (load_style_words(cfg, sets, args.data, args.cache, progress=not args.no_progress)
               if cfg.lambda_style > 0 else None)
-    skeleton = D.bandai_skeleton(D.list_files(args.data)) if cfg.action_view == "positions" else None
+    needs_skeleton = cfg.action_view == "positions" or cfg.lambda_hold > 0
+    skeleton = D.bandai_skeleton(D.list_files(args.data)) if needs_skeleton else None
     a, b = sets[(cfg.style_a, "train")], sets[(cfg.style_b, "train")]
     train(cfg, args.out, a.words, b.words, sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,
           resume=args.resume, device=args.device, progress=not args.no_progress,

@@ -56,23 +56,33 @@ class PositionView:
     to the judges (the input: 100 % and 80 %); the judges see hands and feet in space, where
     a small change of a shoulder's angle is a large change of the hand's path."""
 
-    def __init__(self, representation, skeleton, device):
+    def __init__(self, representation, skeleton, device, joints: tuple[int, ...] | None = None):
+        """``joints``: only these joints' positions (in this order), by forward kinematics over
+        their ancestors alone; None: every joint."""
         self.rep = TorchRepresentation(representation, device)
         self.parents = tuple(skeleton.parents)
         self.offsets = torch.as_tensor(np.asarray(skeleton.offsets) / 100.0, dtype=DTYPE, device=device)
-        self.features = 3 * len(self.parents)
+        self.joints = tuple(range(len(self.parents))) if joints is None else tuple(joints)
+        needed = set()
+        for j in self.joints:
+            while j >= 0 and j not in needed:
+                needed.add(j)
+                j = self.parents[j]
+        self._chain = sorted(needed)  # parents come before children in the skeleton's order
+        self.features = 3 * len(self.joints)
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
         local = quat_to_matrix(self.rep.decode(from_channels(x, len(self.parents))))  # (B, T, J, 3, 3)
-        world, positions = [], []
-        for j, p in enumerate(self.parents):  # topological order, each step batched over words and frames
+        world, positions = {}, {}
+        for j in self._chain:  # topological order, each step batched over words and frames
+            p = self.parents[j]
             if p < 0:
-                world.append(local[..., j, :, :])
-                positions.append(torch.zeros_like(local[..., j, :, 0]))
+                world[j] = local[..., j, :, :]
+                positions[j] = torch.zeros_like(local[..., j, :, 0])
             else:
-                world.append(world[p] @ local[..., j, :, :])
-                positions.append(positions[p] + world[p] @ self.offsets[j])
-        return to_channels(torch.stack(positions, dim=-2).to(torch.float32))
+                world[j] = world[p] @ local[..., j, :, :]
+                positions[j] = positions[p] + world[p] @ self.offsets[j]
+        return to_channels(torch.stack([positions[j] for j in self.joints], dim=-2).to(torch.float32))
 
 
 @dataclass

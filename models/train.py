@@ -40,6 +40,7 @@ from . import data as D
 from . import losses as L
 from .averaging import WeightAverage
 from .content import ActionLabels, FrozenClassifier, PositionView
+from .holds import HoldTerm
 from .style_target import STYLE_SALT, StyleWords
 from .device import Determinism, pick_device
 from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
@@ -51,7 +52,7 @@ AVERAGE_PREFIX = "average."  # the weight average's tensors in train_state.safet
 ACTION_VIEWS = ("channels", "positions")  # what the action-content classifier sees (content.py)
 CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
               "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "action_a2b", "action_b2a", "style_a2b",
-              "style_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
+              "style_b2a", "hold_a2b", "hold_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
               "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
 
 
@@ -81,6 +82,7 @@ class TrainConfig:
     lambda_action: float = 0.0  # the restyle keeps the input's action (content.py); 0 = off
     action_view: str = "channels"  # what its classifier sees: the generator's channels or joint positions
     lambda_style: float = 0.0  # the restyle reads as the target among all styles (style_target.py); 0 = off
+    lambda_hold: float = 0.0  # where the input holds a hand or the head still, so does the restyle (holds.py); 0 = off
     # The model written is the generators' weight average (averaging.py) with this decay; 0 =
     # the last weights. Measured over four seeds of the pair recipe (MODEL_CARD.md), the
     # average against each run's own last weights: jerk 1.08-1.14 -> 1.01-1.02, planted-foot
@@ -140,7 +142,8 @@ def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
         **shared_metadata(cfg, rep, f"styles {cfg.style_a} and {cfg.style_b}"),
         "loss": cfg.loss,
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence,
-                    "gram": cfg.lambda_gram, "action": cfg.lambda_action, "style": cfg.lambda_style},
+                    "gram": cfg.lambda_gram, "action": cfg.lambda_action, "style": cfg.lambda_style,
+                    "hold": cfg.lambda_hold},
     }
     meta.update(extra or {})
     return meta
@@ -171,7 +174,8 @@ class Trainer:
         same take (overlapping it by 60 - hop frames), or -1 (``data.next_words``).
         ``actions``: every word's action, needed when ``cfg.lambda_action`` > 0.
         ``styles``: words of every style, needed when ``cfg.lambda_style`` > 0.
-        ``skeleton``: the actors' humanoid skeleton, needed with ``cfg.action_view`` "positions"."""
+        ``skeleton``: the actors' humanoid skeleton, needed with ``cfg.action_view`` "positions"
+        and with ``cfg.lambda_hold`` > 0."""
         import torch
 
         if cfg.loss not in L.LOSS_KINDS:
@@ -205,6 +209,11 @@ class Trainer:
         self.style_judge = self.style_targets = None
         if cfg.lambda_style > 0:
             self._fit_style(styles)
+        self.hold = None
+        if cfg.lambda_hold > 0:
+            if skeleton is None:
+                raise UserError("--lambda-hold needs the actors' skeleton; train from the dataset folder")
+            self.hold = HoldTerm(self.rep, skeleton, self.device)
 
     def _fit_content(self, actions: ActionLabels | None, val_a, val_b) -> None:
         """Train the frozen action classifier of the content loss on both styles' training
@@ -288,6 +297,13 @@ class Trainer:
             if target is not None:
                 loss = self.style_judge.loss(fake, target.expand(len(fake)))
                 total = total + cfg.lambda_style * loss
+                extras[name] = loss.item()
+            else:
+                extras[name] = 0.0
+        for name, fake, given in (("hold_a2b", fake_b, a), ("hold_b2a", fake_a, b)):
+            if self.hold is not None:
+                loss = self.hold(fake, given)
+                total = total + cfg.lambda_hold * loss
                 extras[name] = loss.item()
             else:
                 extras[name] = 0.0

@@ -1,0 +1,103 @@
+"""The hold term (``models/holds.py``, ``train --lambda-hold``) and the joint subset of the
+position view it runs on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from scipy.spatial.transform import Rotation
+
+from stylecast.cli import main
+from stylecast.models.content import PositionView
+from stylecast.models.holds import HoldTerm
+from stylecast.models.metrics import HOLD_JOINTS, HOLD_SPEED, world_positions
+from stylecast.models.networks import to_channels
+from stylecast.models.representation import get_representation
+from stylecast.models.train import Trainer
+from stylecast.motion.errors import UserError
+from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
+
+from .test_models import _tiny_cfg, synthetic_words
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
+J = len(HUMANOID_BONES)
+ARM = HUMANOID_BONES.index("LeftUpperArm")
+
+
+def pose_words(arm_deg_per_frame: float, arm_offset_deg: float = 0.0) -> np.ndarray:
+    """One word (1, 60, J, 4): a fixed random pose, the left upper arm turning about its
+    own z axis at ``arm_deg_per_frame`` from ``arm_offset_deg``."""
+    rng = np.random.default_rng(3)
+    rotvec = np.repeat(rng.normal(scale=0.3, size=(1, 1, J, 3)), 60, axis=1)
+    rotvec[0, :, ARM, 2] += np.radians(arm_offset_deg + arm_deg_per_frame * np.arange(60))
+    return Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_quat().reshape(1, 60, J, 4)
+
+
+def hold_term_numpy(restyled: np.ndarray, source: np.ndarray, skeleton) -> float:
+    """The same figure from the metrics' numpy forward kinematics, in cm."""
+    roots = np.zeros((60, 3))
+    p_in, p_out = world_positions(source[0], roots, skeleton), world_positions(restyled[0], roots, skeleton)
+    drift, held = [], []
+    for name in HOLD_JOINTS:
+        j = HUMANOID_BONES.index(name)
+        rel_in, rel_out = p_in[:, j] - p_in[:, 0], p_out[:, j] - p_out[:, 0]
+        held.append(np.linalg.norm(np.diff(rel_in, axis=0), axis=-1) < HOLD_SPEED)
+        drift.append(np.linalg.norm(np.diff(rel_out - rel_in, axis=0), axis=-1))
+    held, drift = np.concatenate(held), np.concatenate(drift)
+    return float((drift * held).sum() / max(held.sum(), 1))
+
+
+@pytest.fixture(scope="module")
+def hold():
+    rep = get_representation("euler")
+    skeleton = humanoid_skeleton_default()
+    term = HoldTerm(rep, skeleton, "cpu")
+    return lambda restyled, source: term(*(to_channels(torch.from_numpy(rep.encode(w))) for w in (restyled, source))).item()
+
+
+def test_the_joint_subset_of_the_position_view_is_those_columns_of_the_whole_view():
+    rep, skeleton = get_representation("euler"), humanoid_skeleton_default()
+    x = to_channels(torch.from_numpy(rep.encode(synthetic_words(2, 5))))
+    joints = (HUMANOID_BONES.index("Head"), HUMANOID_BONES.index("LeftHand"))
+    whole = PositionView(rep, skeleton, "cpu")(x).reshape(2, J, 3, 60)
+    part = PositionView(rep, skeleton, "cpu", joints=joints)(x).reshape(2, 2, 3, 60)
+    assert torch.equal(part, whole[:, list(joints)])
+
+
+def test_a_held_pose_restyled_to_another_held_pose_pays_nothing(hold):
+    still = pose_words(0.0)
+    assert hold(still, still) == 0.0
+    assert hold(pose_words(0.0, arm_offset_deg=10.0), still) < 1e-3  # a posture change is free
+
+
+def test_a_drifting_arm_over_a_held_pose_pays_its_hands_drift(hold):
+    """The known-bad case: the correction turns the held arm by 0.2 degrees a frame; the
+    figure is the numpy forward kinematics' mean drift over the held frames."""
+    still, drifting = pose_words(0.0), pose_words(0.2)
+    expected = hold_term_numpy(drifting, still, humanoid_skeleton_default())
+    assert expected > 0.03
+    assert hold(drifting, still) == pytest.approx(expected, rel=0.02)
+
+
+def test_drift_where_the_input_moves_is_not_a_hold(hold):
+    """The input swings its arm (2 degrees a frame: the hand moves well over HOLD_SPEED), and
+    the restyle adds the same drift as above: nothing is held that moved, so it pays nothing."""
+    moving = pose_words(2.0)
+    assert hold(pose_words(2.2), moving) < 1e-3
+
+
+def test_a_trainer_with_the_hold_term_trains_and_needs_the_skeleton():
+    a, b = synthetic_words(8, 1), synthetic_words(8, 2)
+    cfg = _tiny_cfg(lambda_hold=1.0)
+    trainer = Trainer(cfg, a, b, a[:4], b[:4], device="cpu", skeleton=humanoid_skeleton_default())
+    assert trainer.run_epoch()["hold_a2b"] > 0.0
+    with pytest.raises(UserError, match="--lambda-hold needs the actors' skeleton"):
+        Trainer(cfg, a, b, a[:4], b[:4], device="cpu")
+
+
+def test_the_hold_term_is_refused_for_a_multistyle_model_in_one_sentence(capsys, tmp_path):
+    assert main(["train", "--styles", "all", "--lambda-hold", "1", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "--lambda-hold is for a pair model" in err and err.count("\n") == 1
