@@ -23,20 +23,22 @@ from .test_models import _tiny_cfg, synthetic_words
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 J = len(HUMANOID_BONES)
-ARM = HUMANOID_BONES.index("LeftUpperArm")
+ARM, LEG = HUMANOID_BONES.index("LeftUpperArm"), HUMANOID_BONES.index("LeftUpperLeg")
 
 
-def pose_words(arm_deg_per_frame: float, arm_offset_deg: float = 0.0) -> np.ndarray:
+def pose_words(arm_deg_per_frame: float, arm_offset_deg: float = 0.0, leg_deg_per_frame: float = 0.0) -> np.ndarray:
     """One word (1, 60, J, 4): a fixed random pose, the left upper arm turning about its
-    own z axis at ``arm_deg_per_frame`` from ``arm_offset_deg``."""
+    own z axis at ``arm_deg_per_frame`` from ``arm_offset_deg``, the left thigh about its x
+    axis at ``leg_deg_per_frame``."""
     rng = np.random.default_rng(3)
     rotvec = np.repeat(rng.normal(scale=0.3, size=(1, 1, J, 3)), 60, axis=1)
     rotvec[0, :, ARM, 2] += np.radians(arm_offset_deg + arm_deg_per_frame * np.arange(60))
+    rotvec[0, :, LEG, 0] += np.radians(leg_deg_per_frame * np.arange(60))
     return Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_quat().reshape(1, 60, J, 4)
 
 
 def hold_term_numpy(restyled: np.ndarray, source: np.ndarray, skeleton) -> float:
-    """The same figure from the metrics' numpy forward kinematics, in cm."""
+    """The same figure for an input that stands, from the metrics' numpy forward kinematics, in cm."""
     roots = np.zeros((60, 3))
     p_in, p_out = world_positions(source[0], roots, skeleton), world_positions(restyled[0], roots, skeleton)
     drift, held = [], []
@@ -88,8 +90,17 @@ def test_drift_where_the_input_moves_is_not_a_hold(hold):
     assert hold(pose_words(2.2), moving) < 1e-3
 
 
+def test_a_held_hand_while_the_feet_move_is_not_a_hold(hold):
+    """The same drift over the same still arm, but the input's thigh swings (3 degrees a
+    frame: its foot moves against the hips as a walking foot does): the performer does not
+    stand, so the term leaves the upper body's motion to the style."""
+    assert hold(pose_words(0.0), pose_words(0.0)) == 0.0
+    assert hold(pose_words(0.2, leg_deg_per_frame=3.0), pose_words(0.0, leg_deg_per_frame=3.0)) < 1e-3
+    assert hold(pose_words(0.2, leg_deg_per_frame=0.1), pose_words(0.0, leg_deg_per_frame=0.1)) > 0.03
+
+
 def test_a_trainer_with_the_hold_term_trains_and_needs_the_skeleton():
-    a, b = synthetic_words(8, 1), synthetic_words(8, 2)
+    a, b = (np.repeat(synthetic_words(8, seed)[:, :1], 60, axis=1) for seed in (1, 2))  # held poses
     cfg = _tiny_cfg(lambda_hold=1.0)
     trainer = Trainer(cfg, a, b, a[:4], b[:4], device="cpu", skeleton=humanoid_skeleton_default())
     assert trainer.run_epoch()["hold_a2b"] > 0.0
