@@ -74,6 +74,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-hold", type=float, default=0.0,
                    help="weight of the loss that keeps a hand or the head still where the input holds it still "
                         "against the hips (pair models); default 0 = off")
+    p.add_argument("--hold-from", type=int, default=0, metavar="EPOCH",
+                   help="train the first EPOCH epochs without the hold term, then with it (default 0: from the "
+                        "start); the epochs before it are the same run as without the term")
     p.add_argument("--mirror", action="store_true",
                    help="train on every take and its left-right mirror image (a left turn mirrored is a right "
                         "turn); the epoch's size is unchanged")
@@ -234,7 +237,7 @@ def run_train(args) -> int:
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
                       lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
-                      lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, feet=args.feet, mirror=args.mirror,
+                      lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, hold_from=args.hold_from, feet=args.feet, mirror=args.mirror,
                       action_view=args.action_view, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
@@ -245,6 +248,11 @@ def run_train(args) -> int:
                         ("--lambda-hold", args.lambda_hold)):
         if not value >= 0:
             raise UserError(f"{flag} must be 0 or more, got {value:g}")
+    if args.hold_from and not 0 < args.hold_from < cfg.epochs:
+        raise UserError(f"--hold-from {args.hold_from} leaves no epoch with the hold term in {cfg.epochs} epochs; "
+                        f"choose an epoch from 1 to {cfg.epochs - 1}, or raise --epochs")
+    if args.hold_from and not args.lambda_hold:
+        raise UserError("--hold-from needs --lambda-hold above 0; add it or drop --hold-from")
     try:
         cfg.network = NetworkConfig() if args.knots is None else NetworkConfig(correction_knots=args.knots)
     except ValueError as exc:

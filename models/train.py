@@ -83,6 +83,7 @@ class TrainConfig:
     action_view: str = "channels"  # what its classifier sees: the generator's channels or joint positions
     lambda_style: float = 0.0  # the restyle reads as the target among all styles (style_target.py); 0 = off
     lambda_hold: float = 0.0  # where the input holds a hand or the head still, so does the restyle (holds.py); 0 = off
+    hold_from: int = 0  # the epochs before it train without the hold term (a fine-tune of a finished run)
     # The model written is the generators' weight average (averaging.py) with this decay; 0 =
     # the last weights. Measured over four seeds of the pair recipe (MODEL_CARD.md), the
     # average against each run's own last weights: jerk 1.08-1.14 -> 1.01-1.02, planted-foot
@@ -144,6 +145,7 @@ def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence,
                     "gram": cfg.lambda_gram, "action": cfg.lambda_action, "style": cfg.lambda_style,
                     "hold": cfg.lambda_hold},
+        "hold_from_epoch": cfg.hold_from,
     }
     meta.update(extra or {})
     return meta
@@ -301,7 +303,7 @@ class Trainer:
             else:
                 extras[name] = 0.0
         for name, fake, given in (("hold_a2b", fake_b, a), ("hold_b2a", fake_a, b)):
-            if self.hold is not None:
+            if self.hold is not None and self.epoch >= cfg.hold_from:
                 loss = self.hold(fake, given)
                 total = total + cfg.lambda_hold * loss
                 extras[name] = loss.item()

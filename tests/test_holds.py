@@ -112,3 +112,28 @@ def test_the_hold_term_is_refused_for_a_multistyle_model_in_one_sentence(capsys,
     assert main(["train", "--styles", "all", "--lambda-hold", "1", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "--lambda-hold is for a pair model" in err and err.count("\n") == 1
+
+
+def test_hold_from_trains_the_first_epochs_as_the_run_without_the_term():
+    """``--hold-from``: a fine-tune of a finished run. Before it, the same weights as a run
+    without the term (so the one command reproduces the shipped run, then tunes it); after
+    it, the term is paid."""
+    a, b = (np.repeat(synthetic_words(8, seed)[:, :1], 60, axis=1) for seed in (1, 2))
+    skeleton = humanoid_skeleton_default()
+    late = Trainer(_tiny_cfg(lambda_hold=1.0, hold_from=1), a, b, device="cpu", skeleton=skeleton)
+    plain = Trainer(_tiny_cfg(), a, b, device="cpu")
+    assert late.run_epoch()["hold_a2b"] == 0.0
+    plain.run_epoch()
+    assert all(torch.equal(x, y) for x, y in zip(late.model.state_dict().values(), plain.model.state_dict().values()))
+    assert late.run_epoch()["hold_a2b"] > 0.0
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--lambda-hold", "1", "--hold-from", "90"], "--hold-from 90 leaves no epoch with the hold term in 90 epochs"),
+    (["--hold-from", "10"], "--hold-from needs --lambda-hold above 0"),
+    (["--lambda-hold", "-1"], "--lambda-hold must be 0 or more"),
+])
+def test_bad_hold_options_are_refused_in_one_sentence_before_loading(capsys, tmp_path, flags, message):
+    assert main(["train", *flags, "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
