@@ -93,6 +93,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-progress", action="store_true", help="print one line per epoch instead of a bar")
     p.set_defaults(func=run_train)
 
+    p = sub.add_parser("tune-holds", help="tune a trained pair model to hold a hand or the head still where the "
+                                           "input holds it, changing nothing else it can help")
+    p.add_argument("--model", default="normal2exhausted", help="the pair model to tune (a file or a shipped name)")
+    p.add_argument("--out", type=Path, required=True, help="the tuned model's file (.safetensors)")
+    p.add_argument("--lambda-hold", type=float, help="weight of the hold term (default 4)")
+    p.add_argument("--distil", type=float, help="weight of the distillation to the model as it was (default 100)")
+    p.add_argument("--epochs", type=_positive_int, help="passes over each style's training words (default 10)")
+    p.add_argument("--seed", type=int, default=3)
+    p.add_argument("--data", type=Path)
+    p.add_argument("--cache", type=Path)
+    p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
+    p.set_defaults(func=run_tune_holds)
+
     p = sub.add_parser("restyle", help="restyle a BVH clip with a trained model")
     p.add_argument("input", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True)
@@ -271,6 +284,22 @@ def run_train(args) -> int:
           resume=args.resume, device=args.device, progress=not args.no_progress,
           next_a=D.next_words(a), next_b=D.next_words(b), actions=ActionLabels.of(sets),
           styles=styles, skeleton=skeleton)
+    return 0
+
+
+def run_tune_holds(args) -> int:
+    from stylecast.motion.errors import UserError
+
+    from .holds import tune_holds
+
+    for flag, value in (("--lambda-hold", args.lambda_hold), ("--distil", args.distil)):
+        if value is not None and not value >= 0:
+            raise UserError(f"{flag} must be 0 or more, got {value:g}")
+    if args.out.suffix != ".safetensors":
+        raise UserError(f"--out {args.out} must name a .safetensors file, for example runs/tuned.safetensors")
+    _threads(args.threads)
+    tune_holds(args.model, args.out, seed=args.seed, data_dir=args.data, cache_dir=args.cache,
+               **_given(lambda_hold=args.lambda_hold, distil=args.distil, epochs=args.epochs))
     return 0
 
 
