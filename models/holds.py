@@ -133,7 +133,8 @@ def tune_holds(model, out, *, lambda_hold: float = HOLD_TUNE_HOLD, distil: float
         report[name] = {"distillation": sums[0] / steps, "hold_cm_per_frame": sums[1] / steps}
     tuned = {k: v.detach() for k, v in net.state_dict().items() if k.startswith(("G_a2b.", "G_b2a."))}
     lambdas = {**meta.get("lambdas", {}), "hold": lambda_hold}
-    settings = {"from": str(model), "from_weights_sha256": meta.get("weights_sha256"), "lambda_hold": lambda_hold,
+    settings = {"from": str(model), "from_weights_sha256": meta.get("weights_sha256"), "git_revision": ckpt.git_revision(),
+                "lambda_hold": lambda_hold,
                 "distil": distil, "epochs": epochs, "lr": lr, "seed": seed, "batch": BATCH, "last_epoch": report}
     out = Path(out)
     ckpt.save_checkpoint(out, tuned, {**meta, "lambdas": lambdas, "hold_tuning": settings,
