@@ -65,6 +65,7 @@ from .restyler import Restyler
 
 SHIPPED_V1 = "normal2exhausted-v1"
 SHIPPED_V2 = "normal2exhausted-v2"
+SHIPPED_V3 = "normal2exhausted-v3"
 BASELINE = "normal2exhausted-coherence"
 # (name, rendered as a stream that starts with the clip, frames dropped before measuring).
 # "stream": every frame served by words, as ``serve`` sends a stream that has been running
@@ -138,7 +139,8 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
     out = [Variant("input", None, "the input itself"),
            Variant("posture", posture.restyle_words, "mean pose difference of the styles added to the input")]
     for name, note in ((SHIPPED_V1, "first shipped model (free full-rate correction, no foot lock in training)"),
-                       (SHIPPED_V2, "the default two releases back (smooth correction, no action-content loss)"),
+                       (SHIPPED_V2, "an earlier default (smooth correction, no action-content loss)"),
+                       (SHIPPED_V3, "the previous default (the action-content loss at 0.25), before `tune-holds`"),
                        (BASELINE, "Adult2Child temporal-coherence baseline")):
         r = _optional_model(name, log)  # shipped pair models, beside a pair model of the same styles
         if r is not None and r.styles == proposed.styles and r.path != proposed.path:
