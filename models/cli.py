@@ -250,7 +250,8 @@ def run_train(args) -> int:
                       batch_size=args.batch_size, seed=args.seed,
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
                       lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
-                      lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, hold_from=args.hold_from, feet=args.feet, mirror=args.mirror,
+                      lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, hold_from=args.hold_from,
+                      feet=args.feet, mirror=args.mirror,
                       action_view=args.action_view, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 

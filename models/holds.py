@@ -1,7 +1,7 @@
 """The hold term (``train --lambda-hold``): where the input holds a hand or the head still
 against the hips, the restyle holds it still too.
 
-Why: the evaluation's hold measure (``metrics.held``) found the default model's held hands
+Why: the evaluation's hold measure (``metrics.held``) found v3's (the default then) held hands
 and head moving 2.8x as fast as the input's (real exhausted takes hold as still as normal
 ones: 0.95-1.43x), at every hop from 4 to 60, so the drift is in each word's correction, not
 in the stream's blending. Jerk cannot see it: the correction is smooth, it only wanders.
@@ -35,6 +35,8 @@ STANDING_FOOT_SPEED = 1.0  # cm per frame against the hips: below it, both feet,
 
 
 class HoldTerm:
+    """The term for a batch of channel words, in cm per frame (0 where nothing is held)."""
+
     def __init__(self, representation, skeleton, device):
         self.view = PositionView(representation, skeleton, device,
                                  joints=tuple(HUMANOID_BONES.index(j) for j in HOLD_JOINTS + FEET))
@@ -78,9 +80,9 @@ def tune_holds(model, out, *, lambda_hold: float = HOLD_TUNE_HOLD, distil: float
     ``distil * |G(x) - G_before(x)| + lambda_hold * hold(G(x), x)`` over its source style's
     training words, Adam from the model's own weights. Why not the hold term in the GAN's
     training (``train --lambda-hold``): there it fixed the holds but every run, from scratch or
-    resumed from the shipped run, came out another GAN than the shipped one (measured in the
-    model card); the distillation keeps the one that was chosen. ``max_words``: at most that
-    many words of each style (tests). Writes ``out`` (.safetensors)."""
+    resumed from v3's run, came out another GAN than v3 (measured in the model card); the
+    distillation keeps the one that was chosen. ``max_words``: at most that many words of each
+    style (tests). Writes ``out`` (.safetensors)."""
     import copy
     import time
     from pathlib import Path
@@ -133,9 +135,9 @@ def tune_holds(model, out, *, lambda_hold: float = HOLD_TUNE_HOLD, distil: float
         report[name] = {"distillation": sums[0] / steps, "hold_cm_per_frame": sums[1] / steps}
     tuned = {k: v.detach() for k, v in net.state_dict().items() if k.startswith(("G_a2b.", "G_b2a."))}
     lambdas = {**meta.get("lambdas", {}), "hold": lambda_hold}
-    settings = {"from": str(model), "from_weights_sha256": meta.get("weights_sha256"), "git_revision": ckpt.git_revision(),
-                "lambda_hold": lambda_hold,
-                "distil": distil, "epochs": epochs, "lr": lr, "seed": seed, "batch": BATCH, "last_epoch": report}
+    settings = {"from": str(model), "from_weights_sha256": meta.get("weights_sha256"),
+                "git_revision": ckpt.git_revision(), "lambda_hold": lambda_hold, "distil": distil, "epochs": epochs,
+                "lr": lr, "seed": seed, "batch": BATCH, "last_epoch": report}
     out = Path(out)
     ckpt.save_checkpoint(out, tuned, {**meta, "lambdas": lambdas, "hold_tuning": settings,
                                       "weights": f"{meta.get('weights', 'the trained weights')}, then tuned to hold "

@@ -56,7 +56,8 @@ def hold():
     rep = get_representation("euler")
     skeleton = humanoid_skeleton_default()
     term = HoldTerm(rep, skeleton, "cpu")
-    return lambda restyled, source: term(*(to_channels(torch.from_numpy(rep.encode(w))) for w in (restyled, source))).item()
+    channels = lambda w: to_channels(torch.from_numpy(rep.encode(w)))  # noqa: E731
+    return lambda restyled, source: term(channels(restyled), channels(source)).item()
 
 
 def test_the_joint_subset_of_the_position_view_is_those_columns_of_the_whole_view():
