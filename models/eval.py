@@ -435,7 +435,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "judge_seeds": judges.seeds, "judge_panel": judges.describe(),
                "dynamics_judge_seeds": judges.dynamics_seeds,
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
-               "real_target_jerk_ratio": real_jerk, "real_target_hold_ratio": real_hold, "travel_ceiling": ceiling, "results": results,
+               "real_target_jerk_ratio": real_jerk, "real_target_hold_ratio": real_hold, "travel_ceiling": ceiling,
+               "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
                "torch_threads": _torch_threads()}
     plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)

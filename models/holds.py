@@ -109,9 +109,7 @@ def tune_holds(model, out, *, lambda_hold: float = HOLD_TUNE_HOLD, distil: float
     hop = int(meta.get("training", {}).get("hop", 20))
     report = {}
     for name, style in (("G_a2b", meta["styles"]["a"]), ("G_b2a", meta["styles"]["b"])):
-        words = D.load_wordset(style, "train", data_dir, cache_dir, hop, max_words).words
-        x_all = torch.from_numpy(np.concatenate([rep.encode(words[i:i + 2048]) for i in range(0, len(words), 2048)])
-                                 .astype(np.float32))
+        x_all = torch.from_numpy(D.load_wordset(style, "train", data_dir, cache_dir, hop, max_words).features(rep))
         student = getattr(net, name)
         teacher = copy.deepcopy(student).eval().requires_grad_(False)
         opt = torch.optim.Adam(student.parameters(), lr=lr, betas=(0.5, 0.999))

@@ -212,12 +212,10 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
         for a in actions:
             row = res[name]["stream"]["per_action"][a].get("action_taken_as", {})
             lines.append(f"| {a} | " + " | ".join(_pct(row[b]) if b in row else "-" for b in actions) + " |")
+    holds = m.get("real_target_hold_ratio", {})  # absent from reports before the hold measure
     lines += ["", f"## Real motion: jerk (and holds) of real {tgt} clips over real {src} clips of the same action", "",
-              "| action | all | hands | feet |", "|---|---|---|---|"]
-    holds = m.get("real_target_hold_ratio", {})
-    if holds:
-        lines[-2:] = ["| action | all | hands | feet | held hands and head (each take's own holds) |",
-                      "|---|---|---|---|---|"]
+              "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else ""),
+              "|---|---|---|---|" + ("---|" if holds else "")]
     for a, g in m["real_target_jerk_ratio"].items():
         lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |"
                      + (f" {_num(holds.get(a), 2)} |" if holds else ""))
