@@ -5,6 +5,8 @@
     python bench/bench_daemon.py presets 8 10   # presets only, 8 performers, 10 s per run
     python bench/bench_daemon.py capacity 5     # capacity only, 5 s per run
     python bench/bench_daemon.py capacity-workers 5  # the same over one process per core (serve --workers)
+    python bench/bench_daemon.py capacity-workers 5 --device cuda --sizes 64,256,1024 --no-baseline
+                                        # serve --device cuda; rerun with --device cpu for its baseline
 
 Latency: one performer replayed at 60 fps whose hips x position encodes the frame index;
 the daemon sends VMC over loopback to a receiver *process* (so its timestamps do not
@@ -58,13 +60,14 @@ from stylecast.motion.clock import OUTPUT_FPS as FPS  # noqa: E402 (the one defi
 
 # ----------------------------------------------------------------------------- helpers
 
-def restyler():
+def restyler(device="cpu"):
     from stylecast.daemon.restylers import StandInRestyler
 
     if CHECKPOINT.exists():
         from stylecast.models.restyler import Restyler
 
-        return Restyler.load(str(CHECKPOINT)), "normal2exhausted (shipped model)"
+        model = Restyler.load(str(CHECKPOINT), device=device)
+        return model, f"normal2exhausted (shipped model) on {model.device}"
     return StandInRestyler(), "stand-in restyler (numpy; the model checkpoint is not shipped yet)"
 
 
@@ -292,12 +295,13 @@ class PreviousModelCall:
         return getattr(self._restyler, name)
 
 
-def _capacity_in_process(n, port, seconds, hop, latency, previous, worker, start, conn):
+def _capacity_in_process(n, port, seconds, hop, latency, previous, worker, device, start, conn):
     """One worker of a ``--workers`` capacity run: a whole daemon over its slice, started
     with the others (``start``: a barrier passed once every worker has its model), its
     clock offset as ``serve`` offsets it (``worker``: index, count). ``previous``: the
-    previous release's model call (``PreviousModelCall``), every clock started at once."""
-    model, _ = restyler()
+    previous release's model call (``PreviousModelCall``), every clock started at once.
+    ``device``: where this worker's model runs (``serve --device``)."""
+    model, _ = restyler(device)
     if previous:
         from stylecast.daemon import engine
 
@@ -311,7 +315,7 @@ def _capacity_in_process(n, port, seconds, hop, latency, previous, worker, start
     conn.close()
 
 
-def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous=False):
+def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous=False, device="cpu"):
     """``run_capacity`` as ``serve --workers N`` runs it: each process a whole daemon over a
     contiguous slice of the performers (daemon/workers.py), all at once; figures combined."""
     from stylecast.daemon.workers import split
@@ -319,18 +323,21 @@ def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous
     slices = split(n, workers)
     port = free_ports(n)  # performer k to port + k, whichever worker serves it
     parts = run_together(_capacity_in_process,
-                         [(len(r), port + r.start, seconds, hop, latency, previous, (w, len(slices)))
+                         [(len(r), port + r.start, seconds, hop, latency, previous, (w, len(slices)), device)
                           for w, r in enumerate(slices)])
     total = {key: sum(p[key] for p in parts) for key in ("dropped", "late", "cpu", "received", "sent")}
     worst = {key: max(p[key] for p in parts) for key in ("delay", "p99", "tick99", "wall", "calls")}
     return dict(n=n, **total, **worst)
 
 
-def bench_capacity(model, motion, seconds=8.0, workers=1):
+def bench_capacity(model, motion, seconds=8.0, workers=1, sizes=(4, 8, 16, 24, 32, 40, 48, 64), device="cpu",
+                   baseline=True):
     """Before issue 12 (hop 15, delay 15, no slack planning: the criterion was zero dropped
     ticks, late words were faded) against the default preset (zero dropped ticks AND
     zero late words; the delay may grow, shown). ``workers`` > 1: the default preset only,
-    the performers spread over that many processes as ``serve --workers`` does."""
+    the performers spread over that many processes as ``serve --workers`` does, each
+    with its model on ``device``. ``sizes``: the performer counts tried, in order, up to
+    the first that fails. ``baseline`` False: the previous releases' run is skipped."""
     runs = (("before issue 12: hop 15, delay 15", 15, "relaxed", True, False),
             ("--latency default", 0, "default", False, True))
     if workers > 1:  # legacy here: the previous release's model call (PreviousModelCall)
@@ -338,11 +345,14 @@ def bench_capacity(model, motion, seconds=8.0, workers=1):
                  f"switch {PreviousModelCall.SWITCH_INTERVAL * 1e3:g} ms, heap not frozen, clocks started together)",
                  0, "default", True, True),
                 (f"--latency default --workers {workers}", 0, "default", False, True))
+    if not baseline:
+        runs = runs[-1:]
     for label, hop, latency, legacy, strict in runs:
         rows, best = [], 0
-        for n in (4, 8, 16, 24, 32, 40, 48, 64):
+        for n in sizes:
             if workers > 1:
-                r = run_capacity_workers(n, workers, seconds, hop=hop, latency=latency, previous=legacy)
+                r = run_capacity_workers(n, workers, seconds, hop=hop, latency=latency, previous=legacy,
+                                         device=device)
             else:
                 r = run_capacity(n, model, motion, seconds, hop=hop, latency=latency, legacy=legacy)
             ok = r["dropped"] == 0 and (r["late"] == 0 or not strict)
@@ -573,14 +583,30 @@ def ReplaySourceRotations(motion):  # noqa: N802 (reads like the source it stand
     return resample(motion, FPS).rotations
 
 
+def option(argv, name, default):
+    """``--name VALUE`` out of argv (removed from it), else ``default``."""
+    if name in argv:
+        at = argv.index(name)
+        value = argv[at + 1]
+        del argv[at:at + 2]
+        return value
+    return default
+
+
 def main(argv):
+    argv = list(argv)
+    device = option(argv, "--device", "cpu")  # where the model runs (serve --device); the tables say
+    sizes = option(argv, "--sizes", "")  # performer counts the capacity runs try, comma-separated
+    sizes = tuple(int(k) for k in sizes.split(",")) if sizes else (4, 8, 16, 24, 32, 40, 48, 64)
+    baseline = "--no-baseline" not in argv  # capacity runs: also the previous releases' settings
+    argv = [a for a in argv if a != "--no-baseline"]
     numbers = [float(a) for a in argv if a.replace(".", "", 1).isdigit()]
     which = {a for a in argv if not a.replace(".", "", 1).isdigit()} or {"latency", "compute", "capacity", "cpu",
                                                                           "seams", "presets"}
     import scipy
 
     print("machine: " + describe(f"scipy {scipy.__version__}"))
-    model, label = restyler()
+    model, label = restyler(device)
     print(f"restyler: {label}")
     motion = base_motion()
     if "latency" in which:
@@ -588,9 +614,10 @@ def main(argv):
     if "compute" in which:
         bench_compute(model, motion)
     if "capacity" in which:
-        bench_capacity(model, motion, numbers[0] if numbers else 8.0)
+        bench_capacity(model, motion, numbers[0] if numbers else 8.0, sizes=sizes, baseline=baseline)
     if "capacity-workers" in which:
-        bench_capacity(model, motion, numbers[0] if numbers else 8.0, workers=os.cpu_count() or 2)
+        bench_capacity(model, motion, numbers[0] if numbers else 8.0, workers=os.cpu_count() or 2, sizes=sizes,
+                       device=device, baseline=baseline)
     if "cpu" in which:
         bench_cpu(model, motion)
     if "presets" in which:

@@ -1,11 +1,13 @@
 """Model benchmarks: generator cost per word and per batch of 64, the Restyler's full
 batch call (numpy in and out), and offline `restyle` throughput. Prints a table; not a test.
 
-    python bench/bench_models.py [--model PATH|NAME] [--repeats 30]
+    python bench/bench_models.py [--model PATH|NAME] [--repeats 30] [--device cpu|cuda[:N]] [--threads 1]
 
 Everything runs on ONE torch thread (torch.set_num_threads(1)), the live budget's setting:
-one word <= 2 ms, 64 words <= 40 ms. Times are medians over --repeats runs after warm-up.
-The machine is shared, so the load average is printed with the results.
+one word <= 2 ms, 64 words <= 40 ms; ``--threads N`` gives torch more. Times are medians
+over --repeats runs after warm-up. The machine is shared, so the load average is printed
+with the results. ``--device cuda`` puts the model (and the representation work) on the
+GPU; run it beside ``--device cpu`` on the same machine for the baseline (issue 12).
 """
 
 from __future__ import annotations
@@ -69,12 +71,12 @@ def throughput(fn, frames: int) -> tuple[float, float]:
     return frames / (time.perf_counter() - t), frames / max(time.process_time() - c, 1e-9)
 
 
-def load_restyler(name):
+def load_restyler(name, device="cpu"):
     from stylecast.models.restyler import Restyler
     from stylecast.motion.errors import UserError
 
     try:
-        return Restyler.load(name), "trained"
+        return Restyler.load(name, device=device), "trained"
     except UserError as exc:
         # No shipped model yet: an untrained one of the same size costs the same.
         from stylecast.models import checkpoint as ckpt
@@ -86,40 +88,57 @@ def load_restyler(name):
         tr = Trainer(TrainConfig(), words, words, device="cpu")
         path = Path("/tmp/bench_models_untrained.safetensors")
         ckpt.save_checkpoint(path, tr.model_tensors(True), model_metadata(tr.cfg, tr.rep), sidecar=False)
-        return Restyler.load(path), "untrained"
+        return Restyler.load(path, device=device), "untrained"
+
+
+def random_words(n: int) -> np.ndarray:
+    """``n`` smooth random words (a random walk of Euler angles per joint), one hemisphere."""
+    from stylecast.motion import rotations as rot
+
+    rng = np.random.default_rng(0)
+    angles = np.cumsum(rng.normal(0, 1.0, (n, 60, 22, 3)), axis=1) + rng.normal(0, 20, (n, 1, 22, 3))
+    return rot.canonical_hemisphere(rot.from_euler(angles, "XZY"), axis=1)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", default=None)
     ap.add_argument("--repeats", type=int, default=30)
+    ap.add_argument("--device", default="cpu", help="where the model runs: cpu, cuda, cuda:N (default cpu)")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1, the daemon's setting)")
+    ap.add_argument("--batches", default="1,64,4096", help="restyle_words batch sizes for the throughput table")
     args = ap.parse_args()
 
     import torch
 
-    torch.set_num_threads(1)
+    torch.set_num_threads(args.threads)
     from stylecast.models.networks import count_parameters, to_channels, training_forms
     from stylecast.models.restyle import restyle_clip, restyle_rotations
     from stylecast.motion import rotations as rot
     from stylecast.motion.words import DEFAULT_HOP
 
-    restyler, kind = load_restyler(args.model)
+    restyler, kind = load_restyler(args.model, args.device)
+    device = restyler.device
     G = restyler.generator()
-    rng = np.random.default_rng(0)
-    angles = np.cumsum(rng.normal(0, 1.0, (64, 60, 22, 3)), axis=1) + rng.normal(0, 20, (64, 1, 22, 3))
-    words = rot.canonical_hemisphere(rot.from_euler(angles, "XZY"), axis=1)
+    batches = [int(b) for b in args.batches.split(",")]
+    many = random_words(max(batches + [64]))
+    words = many[:64]
     feats = restyler.rep.encode(words)
-    x1 = to_channels(torch.from_numpy(feats[:1]))
-    x64 = to_channels(torch.from_numpy(feats))
+    x1 = to_channels(torch.from_numpy(feats[:1])).to(device)
+    x64 = to_channels(torch.from_numpy(feats)).to(device)
+    sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
+
+    def synced(fn):  # a CUDA call returns before its kernels finish: time them to the end
+        return lambda: (fn(), sync())
 
     rows = []
     trainer_layers = training_forms(G)  # the baseline: oneDNN's kernels, whose rounding depends on the batch
     baseline = "  baseline: training layers (batch-dependent)"
     with torch.no_grad():
-        rows.append(("generator forward, 1 word", median_ms(lambda: G(x1), args.repeats), "<= 2 ms"))
-        rows.append((baseline, median_ms(lambda: trainer_layers(x1), args.repeats), ""))
-        rows.append(("generator forward, 64 words", median_ms(lambda: G(x64), args.repeats), "<= 40 ms"))
-        rows.append((baseline, median_ms(lambda: trainer_layers(x64), args.repeats), ""))
+        rows.append(("generator forward, 1 word", median_ms(synced(lambda: G(x1)), args.repeats), "<= 2 ms"))
+        rows.append((baseline, median_ms(synced(lambda: trainer_layers(x1)), args.repeats), ""))
+        rows.append(("generator forward, 64 words", median_ms(synced(lambda: G(x64)), args.repeats), "<= 40 ms"))
+        rows.append((baseline, median_ms(synced(lambda: trainer_layers(x64)), args.repeats), ""))
     rows.append(("restyle_words, 1 word (numpy in/out)",
                  median_ms(lambda: restyler.restyle_words(words[:1]), args.repeats), ""))
     rows.append(("restyle_words, 64 words (numpy in/out)",
@@ -132,6 +151,16 @@ def main() -> int:
             rows.append((label, median_ms(lambda: restyler.restyle_words(words[:8]), 10, 2, time.thread_time), ""))
             rows.append(("  baseline: the same operations eager (the previous release)",
                          median_ms(lambda: restyler.restyle_words_eager(words[:8]), 5 if switch > 0.002 else 10, 1, time.thread_time), ""))
+
+    # restyle_words at growing batches: words/s with numpy in and out (what `restyle` and the
+    # daemon hand it), and with the words already on the model's device (a tensor in and out).
+    batch_rows = []
+    for b in batches:
+        reps = max(3, min(args.repeats, 2000 // b))
+        on_device = torch.from_numpy(many[:b]).to(device)
+        numpy_ms = median_ms(lambda: restyler.restyle_words(many[:b]), reps, 2)[0]
+        tensor_ms = median_ms(synced(lambda: restyler.restyle_words(on_device)), reps, 2)[0]
+        batch_rows.append((b, numpy_ms, b / numpy_ms * 1e3, tensor_ms, b / tensor_ms * 1e3))
 
     # Offline throughput: the stream part alone (humanoid rotations at 60 fps), and the
     # whole `restyle` path on a shared clip looped to about a minute (read/write excluded).
@@ -154,7 +183,7 @@ def main() -> int:
                               for i in range(reps)])
         looped = clip.replace(rotations=clip.rotations[idx], root_positions=clip.root_positions[idx],
                               translations=None if clip.translations is None else clip.translations[idx])
-        for hop in (20, 60):
+        for hop in (DEFAULT_HOP, 20, 60):
             wall, cpu = throughput(lambda: restyle_clip(looped, restyler, hop=hop), looped.num_frames)
             thr.append((f"`restyle` path, hop {hop}, Bandai {looped.fps:g} fps clip ({looped.num_frames} frames)",
                         wall, cpu))
@@ -163,12 +192,18 @@ def main() -> int:
 
     print(f"stylecast model benchmark ({kind} model {restyler.name}, generator "
           f"{count_parameters(G):,} parameters, representation {restyler.rep.name})")
-    print("machine: " + describe(f"torch {torch.__version__}, 1 torch thread"))
+    gpu = f", {torch.cuda.get_device_name(device)}" if device.type == "cuda" else ""
+    print("machine: " + describe(f"torch {torch.__version__}, {args.threads} torch thread(s), model on {device}{gpu}"))
     print()
     w = max(len(r[0]) for r in rows + thr) + 2
     print(f"{'inference (median of ' + str(args.repeats) + ')':<{w}}{'wall ms':>10}{'CPU ms':>10}  goal")
     for name, (wall, cpu), goal in rows:
         print(f"{name:<{w}}{wall:>10.2f}{cpu:>10.2f}  {goal}")
+    print()
+    print(f"{'restyle_words on ' + str(device) + ' (median wall)':<{w}}{'ms':>10}{'words/s':>10}"
+          f"{'ms':>10}{'words/s':>10}  (numpy in/out | tensor in/out on the device)")
+    for b, numpy_ms, numpy_rate, tensor_ms, tensor_rate in batch_rows:
+        print(f"{f'batch {b}':<{w}}{numpy_ms:>10.2f}{numpy_rate:>10,.0f}{tensor_ms:>10.2f}{tensor_rate:>10,.0f}")
     print()
     print(f"{'offline throughput':<{w}}{'frames/s':>10}{'per CPU s':>10}  "
           f"(goal >= 50,000 frames/s at the default hop, {DEFAULT_HOP})")
