@@ -5,6 +5,7 @@
     python bench/bench_daemon.py presets 8 10   # presets only, 8 performers, 10 s per run
     python bench/bench_daemon.py capacity 5     # capacity only, 5 s per run
     python bench/bench_daemon.py capacity-workers 5  # the same over one process per core (serve --workers)
+    python bench/bench_daemon.py capacity-workers 5 --workers 4  # over 4 processes
     python bench/bench_daemon.py capacity-workers 5 --device cuda --sizes 64,256,1024 --no-baseline
                                         # serve --device cuda; rerun with --device cpu for its baseline
 
@@ -597,6 +598,7 @@ def main(argv):
     argv = list(argv)
     device = option(argv, "--device", "cpu")  # where the model runs (serve --device); the tables say
     sizes = option(argv, "--sizes", "")  # performer counts the capacity runs try, comma-separated
+    workers = int(option(argv, "--workers", 0)) or os.cpu_count() or 2  # capacity-workers: serve --workers
     sizes = tuple(int(k) for k in sizes.split(",")) if sizes else (4, 8, 16, 24, 32, 40, 48, 64)
     baseline = "--no-baseline" not in argv  # capacity runs: also the previous releases' settings
     argv = [a for a in argv if a != "--no-baseline"]
@@ -616,7 +618,7 @@ def main(argv):
     if "capacity" in which:
         bench_capacity(model, motion, numbers[0] if numbers else 8.0, sizes=sizes, baseline=baseline)
     if "capacity-workers" in which:
-        bench_capacity(model, motion, numbers[0] if numbers else 8.0, workers=os.cpu_count() or 2, sizes=sizes,
+        bench_capacity(model, motion, numbers[0] if numbers else 8.0, workers=workers, sizes=sizes,
                        device=device, baseline=baseline)
     if "cpu" in which:
         bench_cpu(model, motion)
