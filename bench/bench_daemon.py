@@ -602,6 +602,13 @@ def main(argv):
     sizes = tuple(int(k) for k in sizes.split(",")) if sizes else (4, 8, 16, 24, 32, 40, 48, 64)
     baseline = "--no-baseline" not in argv  # capacity runs: also the previous releases' settings
     argv = [a for a in argv if a != "--no-baseline"]
+    from stylecast.models.device import pick_device
+    from stylecast.motion.errors import UserError
+
+    try:
+        pick_device(device)
+    except UserError as exc:
+        sys.exit(f"bench_daemon: {exc}")
     numbers = [float(a) for a in argv if a.replace(".", "", 1).isdigit()]
     which = {a for a in argv if not a.replace(".", "", 1).isdigit()} or {"latency", "compute", "capacity", "cpu",
                                                                           "seams", "presets"}

@@ -112,6 +112,14 @@ def main() -> int:
     import torch
 
     torch.set_num_threads(args.threads)
+    from stylecast.models.device import pick_device
+    from stylecast.motion.errors import UserError
+
+    try:
+        pick_device(args.device)
+    except UserError as exc:
+        print(f"bench_models: {exc}", file=sys.stderr)
+        return 2
     from stylecast.models.networks import count_parameters, to_channels, training_forms
     from stylecast.models.restyle import restyle_clip, restyle_rotations
     from stylecast.motion import rotations as rot
