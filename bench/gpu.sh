@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # The GPU figures of issue 12, each beside its CPU baseline on the same machine:
 #   bash bench/gpu.sh OUTDIR [SECONDS]
-# needs stylecast installed, a CUDA device and the Bandai normal and exhausted clips where
-# the tests look for them (../shared/data/bandai/dataset-2/data). Each step has its own time
+# needs stylecast installed, a CUDA device and Bandai dataset-2 clips where the tests look for
+# them (../shared/data/bandai/dataset-2/data, or $STYLECAST_DATA): normal and exhausted for the
+# pair, every style for the multistyle timing (a third of each style's files is enough: an
+# epoch is a fixed number of words, so its time does not depend on the set). Each step has its own time
 # limit and log in OUTDIR, so one that fails or overruns leaves the others' figures; the
 # whole ends within SECONDS (default 560), the most important steps first.
 set -u
@@ -31,9 +33,15 @@ train() {  # seconds per epoch of the shipped recipe's training on device $1
         --lambda-action 0.25 --seed 3 --epochs 3 --device "$1" --out "/tmp/gpu-train-$1"
     cp "/tmp/gpu-train-$1/losses.csv" "$out/train-$1.csv" 2>/dev/null
 }
-capacity() {  # serve --device $1: performers over one worker process per core
+train_all() {  # seconds per epoch of the multistyle model's training on device $1
+    step "train-all-$1" "$2" python3 -m stylecast train --styles all --seed 1 --epochs 3 --device "$1" \
+        --out "/tmp/gpu-train-all-$1" --no-progress
+    cp "/tmp/gpu-train-all-$1/losses.csv" "$out/train-all-$1.csv" 2>/dev/null
+}
+capacity() {  # serve --device $1: performers over one worker process per core (from 8: on the
+    # first H100 host, 16 workers held 8 performers and not 16, see the README)
     step "capacity-$1" "$2" python3 bench/bench_daemon.py capacity-workers 5 --device "$1" \
-        --sizes 64,128,256,512,1024 --no-baseline
+        --sizes 8,16,32,64,128,256,512,1024 --no-baseline
 }
 
 # The tests that run only where CUDA is (skipped on CI's CPU machine).
@@ -42,9 +50,11 @@ step cuda-tests 90 python3 -m pytest -q -p no:cacheprovider tests/test_train_dev
 # On the GPU: restyle_words at batch 1/64/4096 and offline throughput, training, capacity.
 step models-cuda 90 python3 bench/bench_models.py --device cuda --repeats 10
 train cuda 100
-capacity cuda 120
+train_all cuda 60
+capacity cuda 100
 # The baselines on the same machine: its whole CPU for the model bench and the training,
 # one torch thread per worker process (serve's setting) for capacity.
 step models-cpu 80 python3 bench/bench_models.py --device cpu --threads "$(nproc)" --repeats 5
 train cpu 80
-capacity cpu 100
+train_all cpu 40
+capacity cpu 80
