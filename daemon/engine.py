@@ -50,7 +50,7 @@ from .inference import InferenceWorker
 from .latency import MAX_SLACK, calibrate, delay_line, lowered_line, slack_for
 from .output import PerformerSinks, open_outputs, recording_path
 from .restylers import load_restyler, model_name, style_label, style_mix, with_direction, with_style
-from .session import PendingFrame, Session, settle_frames
+from .session import PendingFrame, Session, push_feet, settle_frames
 from .status import LatencyWindow, status_line, status_messages
 
 log = logging.getLogger("stylecast.daemon")
@@ -342,6 +342,7 @@ class Daemon:
             for end, word in session.ingest(now):
                 batch.append((session.index, end, word, session.style_weights()))
         self.worker.submit(batch, now)
+        push_feet(self.sessions)
         vmc_time = self.ticks / FPS
         steps = []
         for session, sinks in zip(self.sessions, self.sinks):

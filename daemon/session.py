@@ -33,7 +33,7 @@ import numpy as np
 
 from stylecast.motion.clip import PoseFrame
 from stylecast.motion.clock import OUTPUT_FPS
-from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, solve_lock_jobs
+from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, push_frames, solve_lock_jobs
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
@@ -71,6 +71,15 @@ class PendingFrame:
     lock: LockJob | None = None  # the foot lock's job, solved
 
 
+def push_feet(sessions: list) -> None:
+    """The input frames the sessions ingested since the last call into their foot locks'
+    contact detection, the legs of all of them in one vectorised pass (``push_frames``)."""
+    rows = [(session.feet, root, rotations) for session in sessions for root, rotations in session._feet_frames]
+    for session in sessions:
+        session._feet_frames = []
+    push_frames(rows)
+
+
 def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> None:
     """The rest of one new frame of each session, each stage one vectorised pass over all
     of them: the seam blender's render, the correction low-pass, then the foot lock and the
@@ -99,6 +108,7 @@ class Session:
         # Planted feet of the input stay planted in the output (after the blender, as
         # offline ``restyle`` does); it looks ahead into the ``delay`` frames buffered.
         self.feet = FootLock.for_stream(skeleton, settings.delay, contacts, fade_in=settings.first_fade_end)
+        self._feet_frames: list = []  # (root, rotations) ingested, for the tick's one ``push_feet``
         self.smoothing = CorrectionFilter(len(skeleton), settings.correction_tau)
         self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
         self.frames_in = 0
@@ -172,6 +182,7 @@ class Session:
         if skeleton is not None and skeleton is not self.skeleton:
             self.skeleton = skeleton
             self.skeleton_changed = True
+            push_feet([self])  # the frames before the change on the legs they came with
             self.feet.set_offsets(skeleton.offsets)  # the lock's legs are the performer's
 
     def push(self, frame: PoseFrame, held: bool = False) -> list[tuple[int, np.ndarray]]:
@@ -179,7 +190,7 @@ class Session:
         rotations = np.asarray(frame.rotations, dtype=np.float64)
         root = np.asarray(frame.root_position, np.float64)
         self._inputs.append((t, float(frame.timestamp), root, rotations))
-        self.feet.push(root, rotations)
+        self._feet_frames.append((root, rotations))  # contacts: ``push_feet``, once a tick for all
         if not held:
             self.frames_in += 1
         if self._style_progress < 1.0:

@@ -644,13 +644,17 @@ class FootLock:
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
         rotations = np.asarray(rotations, dtype=np.float64).reshape(len(roots), -1, 4)
         if len(roots) == 1:
-            contacts, lowest = self._contacts_of_one_frame(roots[0], rotations[0])
+            contacts, lowest = self._contacts_of_one_frame(*_feet_of_one_frame(roots[0], rotations[0],
+                                                                                 self._leg_offsets))
         else:
             contacts, lowest = self._contacts_of_frames(roots, rotations)
+        return self._record(contacts, lowest)
+
+    def _record(self, contacts: np.ndarray, lowest: np.ndarray) -> np.ndarray:
         self._planted = contacts[-1].copy()
         self._contacts = np.concatenate([self._contacts, contacts])
         self._floors = np.concatenate([self._floors, lowest])
-        self.frames += len(roots)
+        self.frames += len(contacts)
         self.planted_frames += int(contacts.sum())
         return contacts
 
@@ -674,11 +678,11 @@ class FootLock:
         release = (height > s.release_height) | (speed > s.release_speed)
         return _hysteresis(plant, release, self._planted), lowest
 
-    def _contacts_of_one_frame(self, root: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``_contacts_of_frames`` for one frame on Python floats: the daemon pushes one frame
-        per performer per tick, where numpy's per-call cost was most of the work (measured
-        0.32 of 0.35 ms a frame under the profiler); the stream-vs-clip test checks it."""
-        ankles, balls = _feet_of_one_frame(root, rotations, self._leg_offsets)
+    def _contacts_of_one_frame(self, ankles, balls) -> tuple[np.ndarray, np.ndarray]:
+        """``_contacts_of_frames`` for one frame's feet (ankle and ball positions, [x, y, z]
+        each, of both legs) on Python floats: the daemon pushes one frame per performer per
+        tick, where numpy's per-call cost was most of the work (measured 0.32 of 0.35 ms a
+        frame under the profiler); the stream-vs-clip test checks it."""
         s = self.settings
         self._floor_history.append(min(balls[0][1], balls[1][1]))
         lowest = min(self._floor_history)
@@ -749,6 +753,21 @@ class FootLock:
             self._contacts = self._contacts[drop:]
             self._floors = self._floors[drop:]
             self._base += drop
+
+
+def push_frames(rows: list) -> None:
+    """``FootLock.push`` of one input frame per row, (lock, root (3,), rotations (J, 4)),
+    for many locks at once (a lock's rows in its frames' order): the daemon's tick. The
+    legs' forward kinematics of every row in one vectorised ``leg_chain``, each row with
+    its lock's proportions (one frame's on Python floats was 18 of a push's 30 us, per
+    performer and frame), then each lock's contact state row by row, as ``push`` keeps it."""
+    if not rows:
+        return
+    pos, _, _ = leg_chain(np.array([root for _, root, _ in rows], dtype=np.float64),
+                          np.array([rotations for _, _, rotations in rows], dtype=np.float64),
+                          np.array([lock.offsets for lock, _, _ in rows]))
+    for (lock, _, _), ankles, balls in zip(rows, pos[:, :, 2].tolist(), pos[:, :, 3].tolist()):
+        lock._record(*lock._contacts_of_one_frame(ankles, balls))
 
 
 @dataclass(eq=False)

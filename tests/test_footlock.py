@@ -11,7 +11,7 @@ import pytest
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import (FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, PelvisHeight, StanceOffset,
-                                      _hysteresis, leg_chain, solve_legs, solve_lock_jobs)
+                                      _hysteresis, leg_chain, push_frames, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
@@ -560,6 +560,29 @@ def test_a_rig_that_is_not_the_humanoid_is_refused():
 
     with pytest.raises(ValueError):
         FootLock(Skeleton(("a", "b"), (-1, 0), np.zeros((2, 3))))
+
+
+def test_performers_pushed_in_one_call_detect_the_contacts_each_detects_alone():
+    """The daemon pushes every performer's input frames of a tick in one call (``push_frames``:
+    one vectorised leg FK for all, each with its own proportions); each lock must find the
+    contacts and floors it finds alone, two frames of one performer in one call included."""
+    roots, q = stepping(200)
+    glide = roots.copy()
+    glide[100:, 2] = 5.0 * np.arange(100)
+    performers = [(SK, roots), (SK.with_offsets(SK.offsets * 0.85), roots * [1, 0.85, 1]), (SK, glide)]
+    together = [FootLock.for_stream(sk, 5) for sk, _ in performers]
+    alone = [FootLock.for_stream(sk, 5) for sk, _ in performers]
+    for t in range(0, len(q), 2):
+        push_frames([(lock, r[k], q[k]) for lock, (_, r) in zip(together, performers) for k in (t, t + 1)])
+        for lock, (_, r) in zip(alone, performers):
+            lock.push(r[t:t + 1], q[t:t + 1])
+            lock.push(r[t + 1:t + 2], q[t + 1:t + 2])
+    for a, b in zip(together, alone):
+        assert a.frames == b.frames == len(q)
+        np.testing.assert_array_equal(a._contacts, b._contacts)
+        np.testing.assert_allclose(a._floors, b._floors, atol=1e-9)
+    assert 0 < together[0].planted_frames < 2 * len(q)  # the steps plant and lift
+    assert together[2].planted_frames < together[0].planted_frames  # gliding off the floor step releases
 
 
 def test_the_one_frame_float_path_equals_the_array_path():
