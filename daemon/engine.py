@@ -341,8 +341,8 @@ class Daemon:
         for session in self.sessions:
             for end, word in session.ingest(now):
                 batch.append((session.index, end, word, session.style_weights()))
+        push_feet(self.sessions)  # before the batch goes to the model, where each frame once pushed its own
         self.worker.submit(batch, now)
-        push_feet(self.sessions)
         vmc_time = self.ticks / FPS
         steps = []
         for session, sinks in zip(self.sessions, self.sinks):
