@@ -197,6 +197,16 @@ def _check_generator(name: str, styles: str) -> None:
         raise UserError(f"--generator {name} is a multi-style generator; add --styles all")
 
 
+def _non_negative(**weights) -> None:
+    """One sentence for the first weight given below 0 (None: not given); names are the
+    flags' with dashes for underscores."""
+    from stylecast.motion.errors import UserError
+
+    for name, value in weights.items():
+        if value is not None and not value >= 0:
+            raise UserError(f"--{name.replace('_', '-')} must be 0 or more, got {value:g}")
+
+
 def _given(**options) -> dict:
     """The options given on the command line (None = not given: the config's default)."""
     return {k: v for k, v in options.items() if v is not None}
@@ -208,9 +218,7 @@ def run_train_multistyle(args) -> int:
     from .multistyle import GENERATORS, MultiStyleConfig
     from .train_multistyle import MultiStyleTrainConfig, load_all_styles, train_multistyle
 
-    for flag, value in (("--lambda-identity", args.lambda_identity), ("--lambda-action", args.lambda_action)):
-        if not value >= 0:
-            raise UserError(f"{flag} must be 0 or more, got {value:g}")
+    _non_negative(lambda_identity=args.lambda_identity, lambda_action=args.lambda_action)
     try:
         net = MultiStyleConfig(**GENERATORS[args.generator], **_given(correction_knots=args.knots))
     except ValueError as exc:
@@ -257,11 +265,8 @@ def run_train(args) -> int:
 
     if args.style_a == args.style_b:
         raise UserError(f"--style-a and --style-b are both {args.style_a!r}; choose two different styles")
-    for flag, value in (("--lambda-gram", args.lambda_gram), ("--lambda-overlap", args.lambda_overlap),
-                        ("--lambda-action", args.lambda_action), ("--lambda-style", args.lambda_style),
-                        ("--lambda-hold", args.lambda_hold)):
-        if not value >= 0:
-            raise UserError(f"{flag} must be 0 or more, got {value:g}")
+    _non_negative(lambda_gram=args.lambda_gram, lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
+                  lambda_style=args.lambda_style, lambda_hold=args.lambda_hold)
     if args.hold_from and not 0 < args.hold_from < cfg.epochs:
         raise UserError(f"--hold-from {args.hold_from} leaves no epoch with the hold term in {cfg.epochs} epochs; "
                         f"choose an epoch from 1 to {cfg.epochs - 1}, or raise --epochs")
@@ -293,9 +298,7 @@ def run_tune_holds(args) -> int:
 
     from .holds import tune_holds
 
-    for flag, value in (("--lambda-hold", args.lambda_hold), ("--distil", args.distil)):
-        if value is not None and not value >= 0:
-            raise UserError(f"{flag} must be 0 or more, got {value:g}")
+    _non_negative(lambda_hold=args.lambda_hold, distil=args.distil)
     if args.out.suffix != ".safetensors":
         raise UserError(f"--out {args.out} must name a .safetensors file, for example runs/tuned.safetensors")
     _threads(args.threads)
