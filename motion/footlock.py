@@ -612,7 +612,7 @@ class FootLock:
         self._floor_history: deque = deque(maxlen=settings.floor_window)  # lower ball height per frame
         self._previous = None  # (ankles, balls) of the last pushed frame: two [x, y, z] each
         self._contacts = np.zeros((0, 2), dtype=bool)  # contacts of frames _base ..
-        self._floors = np.zeros(0)  # ...and the floor height seen at each
+        self._floors = np.zeros(0)  # ...and the floor height seen at each (-inf: none known yet)
         self._base = 0
         self.planted_frames = 0  # counters (tests, benchmarks)
         self.locked_frames = 0
@@ -653,7 +653,13 @@ class FootLock:
     def _record(self, contacts: np.ndarray, lowest: np.ndarray) -> np.ndarray:
         self._planted = contacts[-1].copy()
         self._contacts = np.concatenate([self._contacts, contacts])
-        self._floors = np.concatenate([self._floors, lowest])
+        # A floor is known once a foot has stood on it: before a stream's first contact the
+        # lowest ball seen may be a foot in the air (a stream started mid-step or with
+        # made-up motion: 35 cm up, falling 3.5 cm in a frame as lower steps came, and the
+        # floor step's lift popped a knee by 12 degrees in one frame), so free feet are kept
+        # above nothing (-inf) until then.
+        known = self.planted_frames + np.cumsum(contacts.sum(axis=1)) > 0
+        self._floors = np.concatenate([self._floors, np.where(known, lowest, -np.inf)])
         self.frames += len(contacts)
         self.planted_frames += int(contacts.sum())
         return contacts
