@@ -71,9 +71,10 @@ BASELINE = "normal2exhausted-coherence"
 # "stream": every frame served by words, as ``serve`` sends a stream that has been running
 # (the clip is pre-rolled with its own mirrored motion, as ``restyle`` does; that the
 # daemon computes exactly this is tests/test_daemon.py's restyle --live == serve).
-# "live-from-start": ``serve`` started on the clip itself: pass-through for the first word,
-# then the fade-in. The held-out takes are 2 to 9 s long (median 2.2 s), so that start-up
-# is most of a clip; the goals are read on "stream".
+# "live-from-start": ``serve`` started on the clip itself: the restyle fades in over the first
+# half second (the first words hold the clip's first frame before it). The held-out takes
+# are 2 to 9 s long (median 2.2 s), so that start-up is a good part of a clip; the goals are
+# read on "stream".
 SETTINGS = (("stream", False, 0), ("live-from-start", True, 0))
 
 

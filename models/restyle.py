@@ -36,9 +36,10 @@ CROSSFADE_FRAMES = 30
 
 def padding(hop: int, crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None) -> tuple[int, int]:
     """Mirrored frames added (before, after) a clip. Before the first real frame: one word,
-    then long enough for the stream's fade-in from pass-through to finish and for the seam
-    spring, which starts by carrying the first word onto the pass-through pose, to settle
-    (critically damped: (1 + k/d) e^(-k/d) < 0.3 % after k = 8 d frames). After the last
+    so the words that serve real frames hold no held-pose lead-in of the stream's start
+    (``words.first_word_end``), then long enough for the seam spring to settle from
+    the stream's first switches (critically damped: (1 + k/d) e^(-k/d) < 0.3 % after
+    k = 8 d frames) and, with room to spare, the fade-in (over by then). After the last
     real frame: one hop, so a word covers it with real motion rather than a held pose."""
     from stylecast.motion.words import BlendSettings
 
@@ -50,10 +51,10 @@ def word_switches(num_frames: int, hop: int, crossfade_frames: int = CROSSFADE_F
                   decay_frames: float | None = None) -> np.ndarray:
     """Boolean (T-1,): True where frames t-1 and t of a restyled clip come from different
     words (the seams the paper's section 4.5 is about)."""
+    from stylecast.motion.words import serving_word_end
+
     before, _ = padding(hop, crossfade_frames, decay_frames)
-    p = np.arange(num_frames) + before
-    first = WORD_LENGTH - 1
-    serving = np.where(p <= first, first, first + -(-(p - first) // hop) * hop)
+    serving = serving_word_end(np.arange(num_frames) + before, hop)
     return serving[1:] != serving[:-1]
 
 
@@ -65,7 +66,7 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
     ``roots`` (T, 3) are given, root positions; any T >= 1.
     ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
     mirrored padding, so the result is frame for frame what the daemon sends for the same
-    motion (pass-through until the first word is due, then the fade-in). With the root
+    motion (the fade-in from pass-through over the first ``crossfade_frames``). With the root
     positions ``roots`` (T, 3) and the humanoid ``skeleton`` the planted feet are locked
     and the pelvis height set (``motion.footlock``, with ``contacts``, its
     ``ContactSettings``, or the defaults the daemon runs), as the daemon does; without them

@@ -623,7 +623,7 @@ class FootLock:
         """The lock a stream with ``delay`` frames of look-ahead can run: its ramp looks
         ahead at most ``delay`` frames (the daemon and ``restyle`` both build it here).
         ``fade_in``: the frames by which the stream's first fade from pass-through to the
-        restyle has ended (the first word and the crossfade); the stance follows freely
+        restyle has ended (the crossfade from the first frame); the stance follows freely
         until then (see ``StanceOffset``)."""
         lock = cls(skeleton, ramp=min(settings.ramp, delay), settings=settings)
         lock.stance.settled_from = int(fade_in)

@@ -5,7 +5,13 @@ The walk of a frame, frame indices counted from the start of a performer's strea
 
 * ``WordCutter`` keeps a ring buffer of input rotations and, every ``hop`` frames, emits
   a motion word: the last ``WORD_LENGTH`` (60) frames. Word ends lie on the grid
-  e = 59 + phase, 59 + phase + hop, ... (phase 0 unless the daemon staggers performers).
+  e = 59 + phase + k hop (phase 0 unless the daemon staggers performers), from the first
+  such frame at or after the stream's start (``first_word_end``): before its first frame
+  a stream is taken to have held that frame, as a performer standing in the first pose
+  would, so the first words are that pose held and then the motion so far. The restyle
+  fades in from the first frame: waiting for a whole word of real frames left the first
+  1.4 s unrestyled, most of a short take (models/checkpoints/MODEL_CARD.md, "A stream's
+  start").
 * The restyler turns each word into a restyled word (elsewhere, possibly late).
 * ``SeamBlender`` renders output frame t at time t + delay (delay >= hop frames). Frame t
   is served by the first word whose end e >= t (so e <= t + hop - 1). The first frame a
@@ -49,9 +55,18 @@ WORD_LENGTH = 60
 DEFAULT_HOP = 4  # frames between words when nobody says otherwise: serve's default latency preset, restyle, eval
 
 
-def word_ends(num_frames: int, hop: int, word_length: int = WORD_LENGTH) -> list[int]:
-    """Frame indices at which words end for a stream of ``num_frames`` frames."""
-    return list(range(word_length - 1, num_frames, hop))
+def first_word_end(hop: int, word_length: int = WORD_LENGTH, phase: int = 0) -> int:
+    """The frame at which a stream's first word ends: the earliest frame of the grid
+    ``word_length - 1 + phase + k hop`` (k may be negative) that is not before the stream's
+    first frame. That word serves frame 0 on (it ends within a hop of it)."""
+    return (word_length - 1 + phase) % hop
+
+
+def serving_word_end(t, hop: int, word_length: int = WORD_LENGTH, phase: int = 0):
+    """End frame of the word that serves frame t >= 0 (the first grid end >= t); t may be an
+    int or an integer array. Plain arithmetic: the daemon asks once per performer a tick."""
+    first = first_word_end(hop, word_length, phase)
+    return first - ((first - t) // hop) * hop
 
 
 def cut_words(frames: np.ndarray, hop: int, word_length: int = WORD_LENGTH,
@@ -59,17 +74,17 @@ def cut_words(frames: np.ndarray, hop: int, word_length: int = WORD_LENGTH,
     """Every word a ``WordCutter`` fed ``frames`` (T, J, 4) one by one would emit, in one
     gather: (ends (N,), words (N, word_length, J, 4)), each word in one hemisphere over
     time. Offline restyling cuts whole clips this way (the per-frame loop cost more than
-    the rest of the stream code together)."""
+    the rest of the stream code together). Frames before the first are the first held."""
     frames = np.asarray(frames, dtype=np.float64)
-    ends = np.arange(word_length - 1 + phase, len(frames), hop)
-    index = ends[:, None] + np.arange(1 - word_length, 1)[None, :]
+    ends = np.arange(first_word_end(hop, word_length, phase), len(frames), hop)
+    index = np.maximum(ends[:, None] + np.arange(1 - word_length, 1)[None, :], 0)
     return ends, rot.canonical_hemisphere(frames[index], axis=1)
 
 
 @dataclass
 class WordCutter:
     """Ring buffer of input rotations; emits a word every ``hop`` frames, the first when
-    frame ``word_length - 1 + phase`` arrives."""
+    frame ``first_word_end`` arrives (the buffer starts full of the first frame)."""
 
     hop: int
     word_length: int = WORD_LENGTH
@@ -84,10 +99,13 @@ class WordCutter:
 
     def push(self, rotations: np.ndarray) -> tuple[int, np.ndarray] | None:
         """Add one frame (J, 4); return (end frame, word (60, J, 4)) when a word completes."""
-        self._buffer.append(np.asarray(rotations, dtype=np.float64))
+        frame = np.asarray(rotations, dtype=np.float64)
+        if not self._buffer:  # before the stream's first frame: that frame, held
+            self._buffer.extend([frame] * (self.word_length - 1))
+        self._buffer.append(frame)
         t = self.frames_seen
         self.frames_seen += 1
-        first = self.word_length - 1 + self.phase
+        first = first_word_end(self.hop, self.word_length, self.phase)
         if t >= first and (t - first) % self.hop == 0:
             return t, rot.canonical_hemisphere(np.stack(self._buffer))
         return None
@@ -121,9 +139,9 @@ class BlendSettings:
     @property
     def first_fade_end(self) -> int:
         """The stream frame by which its first fade from pass-through to the restyle has
-        ended: the first word, then the crossfade (a staggered ``phase`` delays the first
-        word by less than a hop, which the foot lock's stance, its one user, can spare)."""
-        return self.word_length + self.crossfade_frames
+        ended: the first word serves frame 0, so the crossfade's length, and the
+        correction's low-pass after it (a triple pole: within 1.4 % of a step 8 tau on)."""
+        return self.crossfade_frames + int(np.ceil(8 * self.correction_tau))
 
 
 def _spring_at(offset: np.ndarray, c2: np.ndarray, omega, k) -> np.ndarray:
@@ -197,11 +215,7 @@ class SeamBlender:
 
     def serving_word(self, t: int) -> int:
         """End frame of the word that serves frame t (the first grid end >= t)."""
-        first = self.settings.word_length - 1 + self.phase
-        if t <= first:
-            return first
-        hop = self.settings.hop
-        return first + -(-(t - first) // hop) * hop
+        return serving_word_end(t, self.settings.hop, self.settings.word_length, self.phase)
 
     def render(self, t: int, input_rotations: np.ndarray, intensity: float = 1.0, active: bool = True) -> np.ndarray:
         """Output rotations (J, 4) for frame t, given that frame's input rotations."""
@@ -234,15 +248,10 @@ class SeamBlender:
             run = min(end, t0 + n - 1) - t + 1  # frames served by this word in the block
             # A word ending at frame e serves frames from e + 1 - hop on, which are rendered
             # from time e + 1 + (delay - hop) on: the model has delay - hop + 1 frame
-            # periods. Only the first frames of a stream come before the first word.
-            first_due = end + 1 - self.settings.hop
-            if t < first_due:
-                run = min(run, first_due - t)
-                word = None
-            else:
-                word = self._words.get(end)
-                if word is None and active:
-                    self.late_frames += run  # should have arrived: fade out, never stall
+            # periods, the first word as much as any.
+            word = self._words.get(end)
+            if word is None and active:
+                self.late_frames += run  # should have arrived: fade out, never stall
             start = t - t0
             restyle = self._plan_restyle(t, end, word, inputs[start + run - 1], run)
             runs.append((start, run, restyle, self._plan_mix(run, word is not None and active, intensity)))

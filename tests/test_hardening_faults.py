@@ -43,6 +43,7 @@ from stylecast.drivers.vmc.vmc_in import VmcParser
 from stylecast.drivers.vmc.vmc_out import encode_frame
 from stylecast.motion import rotations as rot
 from stylecast.motion.smoothing import CORRECTION_TAU
+from stylecast.motion.words import first_word_end
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 from .test_daemon import walk_clip
@@ -97,9 +98,9 @@ def test_a_failed_word_falls_back_on_its_first_frame_reaches_pass_through_and_bl
         record.append((s.blender.mix, s.blender.late_frames))
     daemon.close()
     # One performer under a virtual clock: call k restyles exactly the word ending at
-    # 59 + HOP * (k - 1), which serves frames end - HOP + 1 .. end.
-    first_bad_end = 59 + HOP * (bad.start - 1)
-    first_good_end = 59 + HOP * (bad.stop - 1)
+    # first_word_end + HOP * (k - 1), which serves frames end - HOP + 1 .. end.
+    first_bad_end = first_word_end(HOP) + HOP * (bad.start - 1)
+    first_good_end = first_word_end(HOP) + HOP * (bad.stop - 1)
     t_fail, t_back = first_bad_end - HOP + 1, first_good_end - HOP + 1
     out = np.stack([f.rotations for f in frames])
     assert [f.index for f in frames] == list(range(clip.num_frames))

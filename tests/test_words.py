@@ -5,7 +5,7 @@ import pytest
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
-from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, render_planned, restyle_stream
+from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, cut_words, render_planned, restyle_stream
 
 J = 22
 
@@ -35,16 +35,19 @@ def seam_ratio(out: np.ndarray, hop: int, skip: int = 120) -> float:
     return step[switch & keep].mean() / step[~switch & keep].mean()
 
 
-def test_cutter_emits_words_on_the_hop_grid():
+def test_cutter_emits_words_on_the_hop_grid_from_the_start_with_the_first_frame_held_before_it():
     cutter = WordCutter(hop=15)
     motion = smooth_motion(100)
-    ends = [out[0] for t in range(100) if (out := cutter.push(motion[t])) is not None]
-    assert ends == [59, 74, 89]
-    cutter = WordCutter(hop=15)
-    for t in range(60):
-        out = cutter.push(motion[t])
-    assert out[1].shape == (60, J, 4)
-    assert rot.angle_between(out[1], motion[:60]).max() < 1e-9
+    words = [out for t in range(100) if (out := cutter.push(motion[t])) is not None]
+    assert [end for end, _ in words] == [14, 29, 44, 59, 74, 89]  # the grid 59 + 15 k, from frame 0 on
+    end, first = words[0]
+    assert first.shape == (60, J, 4)
+    assert rot.angle_between(first[:45], np.broadcast_to(motion[0], (45, J, 4))).max() < 1e-9  # frame 0, held
+    assert rot.angle_between(first[45:], motion[:15]).max() < 1e-9  # then the stream so far
+    assert rot.angle_between(words[3][1], motion[:60]).max() < 1e-9  # the first word of real frames only
+    offline_ends, offline = cut_words(motion, hop=15)  # restyle's whole-clip cut: the same words
+    assert offline_ends.tolist() == [end for end, _ in words]
+    assert rot.angle_between(offline, np.stack([w for _, w in words])).max() < 1e-9
 
 
 def test_identity_restyler_is_transparent():
@@ -75,13 +78,19 @@ def test_output_follows_the_restyled_words_between_seams(hop):
     assert rot.angle_between(out[300:], expected[300:]).max() < 1e-3
 
 
-def test_start_is_pass_through_then_fades_in_without_a_jump():
+def test_start_fades_in_from_the_first_frame_without_a_jump():
+    """A stream's first words hold its first frame before it, so the restyle fades in from
+    frame 0 and is whole after the crossfade (before: pass-through for the first word, the
+    fade ending at frame 65 here, a third of the clip)."""
     motion = smooth_motion(200)
     settings = BlendSettings(hop=15, crossfade_frames=20)
     constant = rot.from_euler(np.full((J, 3), 30.0), "ZXY")
     out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), settings).rotations
-    first_due = 60 - settings.delay  # the first word is due one frame after frame 59
-    assert rot.angle_between(out[:first_due], motion[:first_due]).max() < 1e-9
+    expected = rot.multiply(np.broadcast_to(constant, motion.shape), motion)
+    assert rot.angle_between(out[0], motion[0]).max() < 52.0 / 20 + 1e-6  # one crossfade step in
+    assert rot.angle_between(out[1], motion[1]).max() > 0.3  # the fade has begun at once
+    whole = settings.first_fade_end  # the crossfade and the correction's low-pass after it
+    assert rot.angle_between(out[whole:60], expected[whole:60]).max() < 0.1
     jumps = rot.angle_between(out[1:], out[:-1]).max(axis=1)
     natural = rot.angle_between(motion[1:], motion[:-1]).max(axis=1)
     assert (jumps - natural).max() < 52.0 / 20 + 1.0  # 30 deg about 3 axes (~52 deg) over 20 frames
@@ -179,14 +188,14 @@ def test_phase_shifts_the_word_grid_and_the_blend_follows_it():
     motion = smooth_motion(300)
     cutter = WordCutter(hop=15, phase=7)
     ends = [out[0] for t in range(300) if (out := cutter.push(motion[t])) is not None]
-    assert ends[:3] == [66, 81, 96]
+    assert ends[:3] == [6, 21, 36]  # the grid 66 + 15 k, one phase later than at phase 0
     constant = rot.from_euler(np.full((J, 3), 20.0), "ZXY")
-    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w),
-                         BlendSettings(hop=15, phase=7)).rotations
-    first_due = 66 + 1 - 15  # one phase later than at phase 0
-    assert rot.angle_between(out[:first_due], motion[:first_due]).max() < 1e-9
-    assert rot.angle_between(out[first_due], motion[first_due]).max() > 0  # the fade-in has begun
-    assert rot.angle_between(out[first_due + 30], motion[first_due + 30]).max() > 5.0
+    settings = BlendSettings(hop=15, phase=7)
+    blender = SeamBlender(settings, J)
+    assert [blender.serving_word(t) for t in (0, 6, 7, 21, 22)] == [6, 6, 21, 21, 36]
+    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), settings).rotations
+    assert rot.angle_between(out[1], motion[1]).max() > 0  # the fade-in has begun at the start
+    assert rot.angle_between(out[30], motion[30]).max() > 5.0
     with pytest.raises(ValueError, match="phase"):
         BlendSettings(hop=15, phase=15)
 
