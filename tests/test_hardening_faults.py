@@ -36,7 +36,7 @@ from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.inference import InferenceWorker
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
-from stylecast.daemon.status import status_line, status_messages
+from stylecast.daemon.status import status_messages
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.drivers.sources import open_source
 from stylecast.drivers.vmc.vmc_in import VmcParser
