@@ -122,7 +122,8 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
              f"and `serve` (hop {m['hop']}, seam blender, foot lock). `stream` = what `serve` sends for a stream that "
              "has been running, which is what `restyle` writes (the clip pre-rolled with its own mirrored motion); "
              "`live-from-start` = `serve` started on the clip (the restyle fading in over the first half second, "
-             "the first words holding the clip's first frame before it: in these 2-9 s takes a good part of a clip). The goals are read on `stream`.", "",
+             "the first words holding the clip's first frame before it: in these 2-9 s takes a good part of a "
+             "clip). The goals are read on `stream`.", "",
              "## The judges", "",
              f"A panel of {_panel_size(m)} 7-style and as many 10-action classifiers over world joint positions and "
              "velocities, in metres, relative to the hips at each window's centre and facing +Z (design and seed: "
