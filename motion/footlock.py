@@ -657,9 +657,10 @@ class FootLock:
         # lowest ball seen may be a foot in the air (a stream started mid-step or with
         # made-up motion: 35 cm up, falling 3.5 cm in a frame as lower steps came, and the
         # floor step's lift popped a knee by 12 degrees in one frame), so free feet are kept
-        # above nothing (-inf) until then.
-        known = self.planted_frames + np.cumsum(contacts.sum(axis=1)) > 0
-        self._floors = np.concatenate([self._floors, np.where(known, lowest, -np.inf)])
+        # above nothing (-inf) until then. (Only then: no work per frame once a foot has stood.)
+        if not self.planted_frames:
+            lowest = np.where(np.cumsum(contacts.any(axis=1)) > 0, lowest, -np.inf)
+        self._floors = np.concatenate([self._floors, lowest])
         self.frames += len(contacts)
         self.planted_frames += int(contacts.sum())
         return contacts
