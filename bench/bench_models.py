@@ -21,6 +21,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+import torch
+import torch.nn.functional as F
 
 from machine import describe  # bench/machine.py (scripts run from bench/)
 
@@ -91,6 +93,37 @@ def load_restyler(name, device="cpu"):
         return Restyler.load(path, device=device), "untrained"
 
 
+class UnfoldConv1d(torch.nn.Conv1d):
+    """The previous release's batch-invariant convolution, kept here as a baseline: every
+    frame's taps unfolded into a copied (B * T', C * k) matrix, one product."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        (k,), (stride,), (pad,) = self.kernel_size, self.stride, self.padding
+        if pad:
+            x = F.pad(x, (pad, pad), mode="replicate" if self.padding_mode == "replicate" else "constant")
+        taps = x.unfold(2, k, stride)  # (B, Cin, T', k)
+        b, cin, frames, _ = taps.shape
+        rows = taps.permute(0, 2, 1, 3).reshape(b * frames, cin * k)
+        out = torch.addmm(self.bias, rows, self.weight.reshape(self.out_channels, cin * k).t())
+        return out.reshape(b, frames, self.out_channels).transpose(1, 2)
+
+
+def previous_inference_form(generator):
+    """A copy of ``generator`` with the previous release's convolution and the native
+    instance norm (its layers' forms before this release)."""
+    import copy
+
+    from stylecast.models.conditioning import RowInstanceNorm1d
+    from stylecast.models.networks import RowConv1d
+
+    previous = {RowConv1d: UnfoldConv1d, RowInstanceNorm1d: torch.nn.InstanceNorm1d}
+    model = copy.deepcopy(generator)
+    for module in model.modules():
+        if type(module) in previous:
+            module.__class__ = previous[type(module)]
+    return model
+
+
 def random_words(n: int) -> np.ndarray:
     """``n`` smooth random words (a random walk of Euler angles per joint), one hemisphere."""
     from stylecast.motion import rotations as rot
@@ -108,8 +141,6 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1, the daemon's setting)")
     ap.add_argument("--batches", default="1,64,4096", help="restyle_words batch sizes for the throughput table")
     args = ap.parse_args()
-
-    import torch
 
     torch.set_num_threads(args.threads)
     from stylecast.models.device import pick_device
@@ -132,7 +163,6 @@ def main() -> int:
     many = random_words(max(batches + [64]))
     words = many[:64]
     feats = restyler.rep.encode(words)
-    x1 = to_channels(torch.from_numpy(feats[:1])).to(device)
     x64 = to_channels(torch.from_numpy(feats)).to(device)
     sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
 
@@ -140,13 +170,15 @@ def main() -> int:
         return lambda: (fn(), sync())
 
     rows = []
-    trainer_layers = training_forms(G)  # the baseline: oneDNN's kernels, whose rounding depends on the batch
-    baseline = "  baseline: training layers (batch-dependent)"
+    baselines = {"  baseline: training layers (batch-dependent)": training_forms(G),  # oneDNN's kernels
+                 "  baseline: the previous release's inference form": previous_inference_form(G)}
     with torch.no_grad():
-        rows.append(("generator forward, 1 word", median_ms(synced(lambda: G(x1)), args.repeats), "<= 2 ms"))
-        rows.append((baseline, median_ms(synced(lambda: trainer_layers(x1)), args.repeats), ""))
-        rows.append(("generator forward, 64 words", median_ms(synced(lambda: G(x64)), args.repeats), "<= 40 ms"))
-        rows.append((baseline, median_ms(synced(lambda: trainer_layers(x64)), args.repeats), ""))
+        for n, goal in ((1, "<= 2 ms"), (8, ""), (64, "<= 40 ms")):
+            x = x64[:n]
+            rows.append((f"generator forward, {n} word{'s' * (n > 1)}", median_ms(synced(lambda: G(x)), args.repeats),
+                         goal))
+            for label, other in baselines.items():
+                rows.append((label, median_ms(synced(lambda: other(x)), args.repeats), ""))
     rows.append(("restyle_words, 1 word (numpy in/out)",
                  median_ms(lambda: restyler.restyle_words(words[:1]), args.repeats), ""))
     rows.append(("restyle_words, 64 words (numpy in/out)",

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from stylecast.models import pipeline
 from stylecast.models.checkpoint import CHECKPOINT_DIR
@@ -48,21 +47,6 @@ def test_the_traced_call_gives_the_eager_pipelines_bits_in_any_batch(name):
         words = random_words(n, seed=n)
         args = conditioning_args(restyler, n)
         assert np.array_equal(restyler.restyle_words(words, *args), restyler.restyle_words_eager(words, *args))
-
-
-@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # torch.jit: see models/pipeline.py
-def test_torchscripts_optimising_passes_would_change_the_bits():
-    """Why the graph runs with them off: on, a later call rounds unlike the eager layers
-    (they split ``addmm`` into a product and a sum)."""
-    restyler = load("normal2exhausted")
-    network, _ = restyler._network(4, None)
-    words = torch.from_numpy(random_words(4))
-    module = pipeline.WordPipeline(network, restyler.torch_representation)
-    with torch.no_grad():
-        graph = torch.jit.trace(module, (words,), check_trace=False)
-        reference = module(words)
-        optimised = [graph(words) for _ in range(3)]
-    assert any(not torch.equal(out, reference) for out in optimised)
 
 
 def python_calls_during(call) -> list[str]:
