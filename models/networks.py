@@ -34,6 +34,7 @@ Sizes are chosen for the live budget: one word <= 2 ms, 64 words <= 40 ms on one
 from __future__ import annotations
 
 import copy
+import functools
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -231,6 +232,19 @@ class Generator(CorrectionGenerator):
 # other modules register theirs (``conditioning.RowStyleCodes``).
 
 
+@functools.lru_cache(maxsize=64)
+def _padded_frame_index(length: int, pad: int, count: int, mode: str, device: torch.device) -> torch.Tensor:
+    """Which input frame each of ``count`` padded frames reads: the edge frames around the
+    word for replication (and past it, where whole stride groups overrun; only zero taps
+    read those), else frame ``length``, a zero frame the caller appends."""
+    index = torch.arange(count) - pad
+    if mode == "replicate":
+        index = index.clamp(0, length - 1)
+    else:
+        index[(index < 0) | (index >= length)] = length
+    return index.to(device)
+
+
 class RowConv1d(nn.Conv1d):
     """A ``Conv1d`` as matrix products over rows of frames: MKL's matrix product rounds
     each row alike for any row count and thread count.
@@ -243,8 +257,8 @@ class RowConv1d(nn.Conv1d):
     the (B, T', C') rows seen as (B, C', T'), so the next layer's ``transpose`` costs
     nothing. The previous form unfolded every frame's taps into a copied (B * T', C * k)
     matrix and transposed every layer's input: 37 % of the generator's time in copies,
-    where the products were 28 %. This form: 1.3-1.6x faster for 8 and 64 words, the
-    same for one (``bench/bench_models.py``)."""
+    where the products were 28 %. This form: 1.3-1.9x faster for 8 to 64 words, the
+    same for one (``bench/bench_models.py``, its baseline rows)."""
 
     def tap_weights(self) -> torch.Tensor:
         """The weight as (taps / stride, stride * C, C') products, made once per weight
@@ -264,20 +278,18 @@ class RowConv1d(nn.Conv1d):
         (k,), (s,), (pad,), (dilation,) = self.kernel_size, self.stride, self.padding, self.dilation
         if self.groups != 1 or dilation != 1:
             raise ValueError("RowConv1d computes plain convolutions only (groups 1, dilation 1)")
-        b, c, _ = x.shape
-        rows = x.transpose(1, 2)  # (B, T, C)
-        if pad and self.padding_mode == "replicate":
-            rows = torch.cat([rows[:, :1].expand(b, pad, c), rows, rows[:, -1:].expand(b, pad, c)], 1)
-        elif pad:
-            rows = F.pad(rows, (0, 0, pad, pad))
-        length = rows.shape[1]
-        frames = (length - k) // s + 1
+        b, c, length = x.shape
         taps = self.tap_weights()
         groups = taps.shape[0]
+        frames = (length + 2 * pad - k) // s + 1
         grouped = frames - 1 + groups  # rows of s frames per word that the taps read
-        if grouped * s > length:
-            rows = F.pad(rows, (0, 0, 0, grouped * s - length))
-        rows = rows[:, :grouped * s].reshape(b * grouped, s * c)
+        # The padded frames in one gather (a copy either way; one operation, where a
+        # concatenation of edge views took five: a third of a one-word call's time here).
+        frame_index = _padded_frame_index(length, pad, grouped * s, self.padding_mode, x.device)
+        rows = x.transpose(1, 2)  # (B, T, C)
+        if self.padding_mode != "replicate" and grouped * s > length:
+            rows = F.pad(rows, (0, 0, 0, 1))  # frame `length`: the zero the index points at
+        rows = rows.index_select(1, frame_index).reshape(b * grouped, s * c)
         n = b * grouped - groups + 1  # the last tap's shifted rows must stay inside
         out = torch.empty(b * grouped, self.out_channels, dtype=x.dtype, device=x.device)
         if self.bias is None:

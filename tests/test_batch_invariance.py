@@ -91,3 +91,36 @@ def test_each_multistyle_generator_kind_is_batch_invariant_with_a_mix_per_word(n
             for size in (3, len(x)):
                 got = np.concatenate([g(x[i:i + size], weights[i:i + size]).numpy() for i in range(0, len(x), size)])
                 np.testing.assert_array_equal(got, alone)
+
+
+@pytest.mark.parametrize("kernel,stride,padding,mode", [
+    (5, 1, 2, "replicate"), (4, 2, 1, "replicate"), (3, 1, 1, "replicate"), (1, 1, 0, "zeros"),
+    (3, 1, 1, "zeros"), (4, 2, 1, "zeros"), (5, 3, 2, "zeros"), (5, 3, 2, "replicate"), (2, 2, 0, "zeros")])
+def test_the_inference_convolution_computes_the_training_layers_convolution(kernel, stride, padding, mode):
+    """``RowConv1d`` (one product per tap over rows of frames, strides as grouped frames,
+    padding as one gather) against torch's ``Conv1d`` with the same weights: the generator's
+    five layer shapes and strides and paddings it does not use, where the stride groups
+    overrun the padded word. A shifted tap or a wrong pad frame is off by the inputs' size."""
+    from stylecast.models.networks import RowConv1d
+
+    torch.manual_seed(kernel * 10 + stride)
+    reference = torch.nn.Conv1d(12, 7, kernel, stride=stride, padding=padding, padding_mode=mode)
+    form = RowConv1d(12, 7, kernel, stride=stride, padding=padding, padding_mode=mode)
+    form.load_state_dict(reference.state_dict())
+    x = torch.randn(3, 12, 31).transpose(1, 2).contiguous().transpose(1, 2)  # and the rows layout it hands on
+    with torch.no_grad():
+        expected, got = reference(x), form(x)
+        assert got.shape == expected.shape
+        assert float((got - expected).abs().max()) < 1e-5
+        alone = form(x[1:2])
+    assert torch.equal(alone[0], got[1])
+
+
+def test_the_inference_instance_norm_computes_the_training_layers_norm():
+    from stylecast.models.conditioning import RowInstanceNorm1d
+
+    x = torch.randn(4, 9, 30) * 3 + 1
+    with torch.no_grad():
+        expected, got = torch.nn.InstanceNorm1d(9)(x), RowInstanceNorm1d(9)(x.transpose(1, 2).contiguous().transpose(1, 2))
+    assert float((got - expected).abs().max()) < 1e-5
+    assert torch.equal(RowInstanceNorm1d(9)(x[2:3])[0], RowInstanceNorm1d(9)(x)[2])
