@@ -284,7 +284,7 @@ class RowConv1d(nn.Conv1d):
         frames = (length + 2 * pad - k) // s + 1
         grouped = frames - 1 + groups  # rows of s frames per word that the taps read
         # The padded frames in one gather (a copy either way; one operation, where a
-        # concatenation of edge views took five: a third of a one-word call's time here).
+        # concatenation of edge views took five: about a fifth of a one-word call here).
         frame_index = _padded_frame_index(length, pad, grouped * s, self.padding_mode, x.device)
         rows = x.transpose(1, 2)  # (B, T, C)
         if self.padding_mode != "replicate" and grouped * s > length:

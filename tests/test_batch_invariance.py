@@ -99,7 +99,7 @@ def test_each_multistyle_generator_kind_is_batch_invariant_with_a_mix_per_word(n
 def test_the_inference_convolution_computes_the_training_layers_convolution(kernel, stride, padding, mode):
     """``RowConv1d`` (one product per tap over rows of frames, strides as grouped frames,
     padding as one gather) against torch's ``Conv1d`` with the same weights: the generator's
-    five layer shapes and strides and paddings it does not use, where the stride groups
+    four kinds of layer, and strides and paddings it does not use, where the stride groups
     overrun the padded word. A shifted tap or a wrong pad frame is off by the inputs' size."""
     from stylecast.models.networks import RowConv1d
 
