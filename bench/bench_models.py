@@ -111,17 +111,10 @@ class UnfoldConv1d(torch.nn.Conv1d):
 def previous_inference_form(generator):
     """A copy of ``generator`` with the previous release's convolution and the native
     instance norm (its layers' forms before this release)."""
-    import copy
-
     from stylecast.models.conditioning import RowInstanceNorm1d
-    from stylecast.models.networks import RowConv1d
+    from stylecast.models.networks import RowConv1d, copy_with_forms
 
-    previous = {RowConv1d: UnfoldConv1d, RowInstanceNorm1d: torch.nn.InstanceNorm1d}
-    model = copy.deepcopy(generator)
-    for module in model.modules():
-        if type(module) in previous:
-            module.__class__ = previous[type(module)]
-    return model
+    return copy_with_forms(generator, {RowConv1d: UnfoldConv1d, RowInstanceNorm1d: torch.nn.InstanceNorm1d})
 
 
 def random_words(n: int) -> np.ndarray:

@@ -322,7 +322,13 @@ def batch_invariant(model: nn.Module) -> nn.Module:
 def training_forms(model: nn.Module) -> nn.Module:
     """A copy of ``model`` with the layers the trainer uses (a benchmark's baseline, a
     test's known-bad case)."""
-    return _swap_forms(copy.deepcopy(model), {form: base for base, form in INFERENCE_FORMS.items()})
+    return copy_with_forms(model, {form: base for base, form in INFERENCE_FORMS.items()})
+
+
+def copy_with_forms(model: nn.Module, forms: dict[type, type]) -> nn.Module:
+    """A copy of ``model`` with each layer of a type in ``forms`` computed in the form it
+    maps to (the same weights)."""
+    return _swap_forms(copy.deepcopy(model), forms)
 
 
 def _swap_forms(model: nn.Module, forms: dict) -> nn.Module:
