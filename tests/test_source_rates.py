@@ -54,9 +54,11 @@ def stream_through_daemon(rate: float, restyler=None, hop: int = DELAY):
                 sender.send_frame(sent.root_positions[i], sent.rotations[i], motion.skeleton.offsets, i / rate)
                 i += 1
             deadline = time.monotonic() + 2.0
-            while source.receiver.counters["frames"] < i and time.monotonic() < deadline:
+            # Until the receive thread has queued them (not merely parsed them): a frame
+            # the tick misses arrives in the next tick's burst, and the session, started
+            # behind by that burst, drops a frame after LAG_PATIENCE ticks to catch up.
+            while source.receiver.delivered < i and time.monotonic() < deadline:
                 time.sleep(0.0005)
-            time.sleep(0.0005)
             daemon.step()
             daemon.clock.advance(1 / OUTPUT_FPS)
             received += [f for f in out.poll(0.0) if f.pose is not None]

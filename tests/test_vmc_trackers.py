@@ -60,9 +60,8 @@ def run_trackers_through_daemon(points: int, motion, extra: str = "", drop: floa
                 # Let loopback deliver before the tick polls (a loaded machine can take a
                 # while): the fake clock must not run ahead of the real packets.
                 deadline = time.monotonic() + 2.0
-                while source.receiver.counters["frames"] <= i and time.monotonic() < deadline:
+                while source.receiver.delivered <= i and time.monotonic() < deadline:
                     time.sleep(0.0005)
-                time.sleep(0.0005)  # (the receiver thread counts a frame just before queueing it)
             daemon.step()
             daemon.clock.advance(1 / OUTPUT_FPS)
             frames += [f for f in out.poll(0.0) if f.pose is not None]

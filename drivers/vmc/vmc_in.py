@@ -353,6 +353,7 @@ class VmcReceiver:
         self._ready = threading.Condition()
         self._hub = None  # the receive hub serving this socket, once started
         self._read = 0  # datagrams the last _receive read
+        self._delivered = 0  # frames handed to poll's callers (or queued for them)
 
     @classmethod
     def from_url(cls, url: str, **kwargs) -> "VmcReceiver":
@@ -369,6 +370,15 @@ class VmcReceiver:
     @property
     def counters(self) -> Counter:
         return self.parser.counters
+
+    @property
+    def delivered(self) -> int:
+        """Frames ``poll`` has returned or will return next: with the receive thread,
+        those it has queued. The parser counts a frame (``counters["frames"]``) a moment
+        before the thread queues it, so a caller that must see a frame on its next poll
+        (a test stepping a fake clock) waits on this count, not on the parser's."""
+        with self._ready:
+            return self._delivered
 
     def _receive(self, limit: int = 100_000) -> list[VmcFrame]:
         frames: list[VmcFrame] = []
@@ -403,7 +413,9 @@ class VmcReceiver:
             return frames
         if timeout > 0:
             select.select([self._sock], [], [], timeout)
-        return self._receive()
+        frames = self._receive()
+        self._delivered += len(frames)
+        return frames
 
     recv_available = poll
 
@@ -424,6 +436,7 @@ class VmcReceiver:
         if frames:
             with self._ready:
                 self._queue.extend(frames)
+                self._delivered += len(frames)
                 overflow = len(self._queue) - self._queue_size
                 for _ in range(max(0, overflow)):
                     self._queue.popleft()
