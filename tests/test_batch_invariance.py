@@ -36,7 +36,12 @@ def words(bandai_root):
     from stylecast.models.data import cut_words, decode_file
 
     data = bandai_root / "dataset-2" / "data"
-    clips = [sorted(data.glob(f"dataset-2_{action}_normal_*.bvh.gz"))[-1] for action in ("walk", "raise-up-both-hands")]
+    clips = []
+    for action in ("walk", "raise-up-both-hands"):
+        found = sorted(data.glob(f"dataset-2_{action}_normal_*.bvh.gz"))
+        if not found:  # a partial copy of the data (the GPU machine's), not a broken checkout
+            pytest.skip(f"no normal {action} clip in {data}")
+        clips.append(found[-1])
     w = np.concatenate([cut_words(decode_file(path)[0].astype(np.float64), hop=15)[:12] for path in clips])
     return rot.canonical_hemisphere(w, axis=1)
 
