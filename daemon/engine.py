@@ -334,7 +334,7 @@ class Daemon:
             self.worker.wait_idle()
         done, failed = self.worker.collect()
         for s, end, word in done:
-            self.sessions[s].add_word(end, word)
+            self.sessions[s].add_word(end, word, continuous=True)  # made so by the worker (inference.py)
         for s, _end in failed:
             self.sessions[s].words_failed += 1
         batch = []

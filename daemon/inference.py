@@ -32,6 +32,8 @@ from collections import deque
 
 import numpy as np
 
+from stylecast.motion import rotations as rot
+
 from .latency import SlackPlanner
 
 log = logging.getLogger("stylecast.daemon")
@@ -147,6 +149,9 @@ class InferenceWorker:
                 raise ValueError(f"restyler returned shape {out.shape} for words of shape {words.shape}")
             norms = np.linalg.norm(out, axis=-1)
             ok = np.all(np.isfinite(out), axis=(1, 2, 3)) & np.all(norms > 1e-6, axis=(1, 2))
+            # The seam blender wants each word continuous in time: one pass for the batch
+            # here, not one per word in the output loop (results are added ``continuous``).
+            out = rot.canonical_hemisphere(out, axis=1)
         except Exception as exc:  # any model failure is a counted fault, never a crash
             out, ok = None, np.zeros(len(items), bool)
             self.last_fault = f"{type(exc).__name__}: {exc}"

@@ -246,8 +246,8 @@ class Session:
             self._resume_end = self.blender.serving_word(self.cutter.frames_seen)
         self.bypass = bypass
 
-    def add_word(self, end: int, restyled: np.ndarray) -> None:
-        self.blender.add_word(end, restyled)
+    def add_word(self, end: int, restyled: np.ndarray, continuous: bool = False) -> None:
+        self.blender.add_word(end, restyled, continuous)
 
     # -- output side ------------------------------------------------------------------
     def render(self, drain: bool = False) -> OutputFrame | None:

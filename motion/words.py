@@ -42,7 +42,6 @@ onto the live input, so the fade-out has something continuous to fade from.
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -90,24 +89,28 @@ class WordCutter:
     word_length: int = WORD_LENGTH
     phase: int = 0
     frames_seen: int = 0
-    _buffer: deque = field(default_factory=deque, repr=False)
+    # Each frame is written twice, at i and i + word_length, so the last word_length frames
+    # are always one contiguous slice: a word is one copy, where stacking 60 frames kept
+    # in a deque cost about as much as the rest of the cut (the daemon cuts per performer).
+    _ring: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not 1 <= self.hop <= self.word_length:
             raise ValueError(f"hop must be between 1 and {self.word_length} frames, got {self.hop}")
-        self._buffer = deque(maxlen=self.word_length)
 
     def push(self, rotations: np.ndarray) -> tuple[int, np.ndarray] | None:
         """Add one frame (J, 4); return (end frame, word (60, J, 4)) when a word completes."""
         frame = np.asarray(rotations, dtype=np.float64)
-        if not self._buffer:  # before the stream's first frame: that frame, held
-            self._buffer.extend([frame] * (self.word_length - 1))
-        self._buffer.append(frame)
+        n = self.word_length
+        if self._ring is None:  # before the stream's first frame: that frame, held
+            self._ring = np.broadcast_to(frame, (2 * n, *frame.shape)).copy()
         t = self.frames_seen
+        self._ring[t % n] = self._ring[t % n + n] = frame
         self.frames_seen += 1
-        first = first_word_end(self.hop, self.word_length, self.phase)
+        first = first_word_end(self.hop, n, self.phase)
         if t >= first and (t - first) % self.hop == 0:
-            return t, rot.canonical_hemisphere(np.stack(self._buffer))
+            start = (t + 1) % n  # where frame t - n + 1, the word's first, sits
+            return t, rot.canonical_hemisphere(self._ring[start:start + n])
         return None
 
 
@@ -205,8 +208,10 @@ class SeamBlender:
         self.mix = 0.0
         self.late_frames = 0
 
-    def add_word(self, end: int, restyled: np.ndarray) -> None:
-        self._words[end] = rot.canonical_hemisphere(np.asarray(restyled, dtype=np.float64))
+    def add_word(self, end: int, restyled: np.ndarray, continuous: bool = False) -> None:
+        """``continuous``: the word's quaternions are already continuous in time
+        (``canonical_hemisphere``, as the daemon's model thread makes a whole batch at once)."""
+        self._words[end] = restyled if continuous else rot.canonical_hemisphere(np.asarray(restyled, dtype=np.float64))
 
     def add_words(self, ends, restyled: np.ndarray) -> None:
         """``add_word`` for a batch (N,) / (N, T, J, 4) in one vectorised pass."""

@@ -96,6 +96,48 @@ def test_daemon_output_equals_offline_restyle(hop):
     assert daemon.sessions[0].blender.late_frames == 0 or hop == 60
 
 
+class SignFlipping(StandInRestyler):
+    """The stand-in, its words' every other frame negated: q and -q are one rotation, and
+    a model may return either."""
+
+    def restyle_words(self, words):
+        out = np.array(super().restyle_words(words))
+        out[:, 1::2] *= -1.0
+        return out
+
+
+def test_a_model_whose_words_flip_quaternion_signs_sends_the_same_quaternions():
+    """What goes out is continuous in time whatever signs the model returns (a VMC client
+    that interpolates received frames needs that): the correction low-pass puts each
+    output on its input's quaternion."""
+    clip = walk_clip(300)
+    _, plain = run_daemon(clip, StandInRestyler(), hop=15)
+    _, flipped = run_daemon(clip, SignFlipping(), hop=15)
+    a, b = (np.stack([f.rotations for f in frames["p0"]]) for frames in (plain, flipped))
+    assert a.shape == b.shape and np.array_equal(a, b)
+    assert (np.sum(a[1:] * a[:-1], axis=-1) > 0).all()
+
+
+def test_the_model_thread_hands_the_blender_words_continuous_in_time():
+    """One pass for a whole batch in the model thread, where the output loop once paid one
+    per word and performer (``SeamBlender.add_word(..., continuous=True)``)."""
+    from stylecast.daemon.inference import InferenceWorker
+
+    words = np.stack([walk_clip(120).rotations[k:k + 60] for k in (0, 20, 40)])
+    worker = InferenceWorker(SignFlipping())
+    try:
+        worker.submit([(0, 59 + 20 * k, words[k]) for k in range(3)])
+        assert worker.wait_idle(5.0)
+        done, failed = worker.collect()
+    finally:
+        worker.close()
+    assert not failed and [end for _, end, _ in done] == [59, 79, 99]
+    restyled = SignFlipping().restyle_words(words)
+    for (_, _, word), raw in zip(done, restyled):
+        assert (np.sum(word[1:] * word[:-1], axis=-1) >= 0).all()
+        assert np.array_equal(word, rot.canonical_hemisphere(raw))
+
+
 def test_serve_feet_stance_is_restyle_feet_stance():
     """``serve --feet stance`` reaches every session's foot lock: the daemon sends what
     ``restyle --live --feet stance`` writes, and that differs from the default lock."""

@@ -50,6 +50,22 @@ def test_cutter_emits_words_on_the_hop_grid_from_the_start_with_the_first_frame_
     assert rot.angle_between(offline, np.stack([w for _, w in words])).max() < 1e-9
 
 
+def test_cutter_words_are_the_last_60_frames_made_continuous_bit_for_bit():
+    """The ring the cutter keeps gives exactly the window of the last 60 frames (the first
+    frame held before the stream), each quaternion's sign chosen to continue the previous
+    frame's, whatever signs the stream sent."""
+    rng = np.random.default_rng(4)
+    motion = smooth_motion(200) * rng.choice([-1.0, 1.0], (200, J, 1))  # q and -q: the same pose
+    held = np.concatenate([np.repeat(motion[:1], 59, axis=0), motion])  # frame 0 held before it
+    cutter = WordCutter(hop=7)
+    words = [out for t in range(200) if (out := cutter.push(motion[t])) is not None]
+    assert len(words) > 20 and words[-1][0] > 120  # the ring has wrapped several times
+    for end, word in words:
+        assert np.array_equal(word, rot.canonical_hemisphere(held[end:end + 60]))
+        assert (np.sum(word[1:] * word[:-1], axis=-1) >= 0).all()
+    assert not (np.sum(held[1:] * held[:-1], axis=-1) >= 0).all()  # the input was not
+
+
 def test_identity_restyler_is_transparent():
     motion = smooth_motion(300)
     out = restyle_stream(motion, lambda w: w, BlendSettings(hop=15)).rotations
