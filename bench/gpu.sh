@@ -38,9 +38,12 @@ train_all() {  # seconds per epoch of the multistyle model's training on device 
         --out "/tmp/gpu-train-all-$1" --no-progress
     cp "/tmp/gpu-train-all-$1/losses.csv" "$out/train-all-$1.csv" 2>/dev/null
 }
-capacity() {  # serve --device $1: performers over one worker process per core (from 8: on the
-    # first H100 host, 16 workers held 8 performers and not 16, see the README)
-    step "capacity-$1" "$2" python3 bench/bench_daemon.py capacity-workers 5 --device "$1" \
+capacity() {  # serve --device $1: performers in one process (on the 2026-11-27 H100 host one
+    # process held 32 with CUDA, as many as any), then over one worker process per core (on
+    # the first H100 host, 16 workers held 8 performers and not 16, see the README)
+    step "capacity1-$1" "$(($2 / 2))" python3 bench/bench_daemon.py capacity 5 --device "$1" \
+        --sizes 8,16,32,64,128,256 --no-baseline
+    step "capacity-$1" "$(($2 / 2))" python3 bench/bench_daemon.py capacity-workers 5 --device "$1" \
         --sizes 8,16,32,64,128,256,512,1024 --no-baseline
 }
 
@@ -51,7 +54,7 @@ step cuda-tests 90 python3 -m pytest -q -p no:cacheprovider tests/test_train_dev
 step models-cuda 90 python3 bench/bench_models.py --device cuda --repeats 10
 train cuda 100
 train_all cuda 60
-capacity cuda 100
+capacity cuda 120
 # The baselines on the same machine: its whole CPU for the model bench and the training,
 # one torch thread per worker process (serve's setting) for capacity.
 step models-cpu 80 python3 bench/bench_models.py --device cpu --threads "$(nproc)" --repeats 5
