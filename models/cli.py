@@ -57,6 +57,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--knots", type=int,
                    help="control points of the smooth (cubic B-spline) correction over a word; 0 = a free "
                         "full-rate correction (default: the shipped models' setting)")
+    p.add_argument("--width", type=_positive_int,
+                   help="the generator's hidden channels (default: the shipped models' 96)")
+    p.add_argument("--blocks", type=_positive_int,
+                   help="the generator's residual blocks at half rate (default: the shipped models' 3)")
     p.add_argument("--lambda-gram", type=float, default=0.0,
                    help="weight of the velocity Gram-matrix dynamics-style loss (seed 004); default 0 = off")
     p.add_argument("--lambda-overlap", type=float, default=0.0,
@@ -212,6 +216,11 @@ def _given(**options) -> dict:
     return {k: v for k, v in options.items() if v is not None}
 
 
+def _network_options(args) -> dict:
+    """The generator's settings given on the command line, as the network config's fields."""
+    return _given(correction_knots=args.knots, g_hidden=args.width, g_blocks=args.blocks)
+
+
 def run_train_multistyle(args) -> int:
     from stylecast.motion.errors import UserError
 
@@ -220,7 +229,7 @@ def run_train_multistyle(args) -> int:
 
     _non_negative(lambda_identity=args.lambda_identity, lambda_action=args.lambda_action)
     try:
-        net = MultiStyleConfig(**GENERATORS[args.generator], **_given(correction_knots=args.knots))
+        net = MultiStyleConfig(**GENERATORS[args.generator], **_network_options(args))
     except ValueError as exc:
         raise UserError(f"--knots: {exc}") from None
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
@@ -273,7 +282,7 @@ def run_train(args) -> int:
     if args.hold_from and not args.lambda_hold:
         raise UserError("--hold-from needs --lambda-hold above 0; add it or drop --hold-from")
     try:
-        cfg.network = NetworkConfig() if args.knots is None else NetworkConfig(correction_knots=args.knots)
+        cfg.network = NetworkConfig(**_network_options(args))
     except ValueError as exc:
         raise UserError(f"--knots: {exc}") from None
     sets = load_training_words(cfg, args.data, args.cache, progress=not args.no_progress)

@@ -221,3 +221,21 @@ def test_restyle_path_with_an_identity_model_reproduces_the_input():
     p_out, _ = forward_kinematics(out)
     assert out.num_frames == clip.num_frames
     assert np.abs(p_out - p_in).max() < 0.05  # centimetres
+
+
+@needs_data
+@pytest.mark.parametrize("kind", [[], ["--styles", "all", "--batch-size", "7", "--words-per-epoch", "14"]])
+def test_train_width_and_blocks_size_the_generator_that_is_written_and_served(kind, tmp_path):
+    """``--width`` / ``--blocks`` reach the network, the checkpoint records them and a
+    restyler built from the file has that many channels and blocks."""
+    from stylecast.models.restyler import Restyler
+
+    run = tmp_path / "run"
+    assert main(["train", "--max-words", "8", "--epochs", "1", "--batch-size", "4", "--words-per-epoch", "4", *kind,
+                 "--width", "40", "--blocks", "2", "--threads", "1", "--out", str(run), "--no-progress"]) == 0
+    meta = json.loads((run / "model.json").read_text())
+    assert (meta["network"]["g_hidden"], meta["network"]["g_blocks"]) == (40, 2)
+    restyler = Restyler.load(str(run / "model.safetensors"))
+    generator = restyler.model if kind else restyler.model.G_a2b
+    assert len(generator.blocks) == 2
+    assert {p.shape[0] for name, p in generator.blocks.named_parameters() if name.endswith("c1.weight")} == {40}
