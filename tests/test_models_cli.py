@@ -239,3 +239,19 @@ def test_train_width_and_blocks_size_the_generator_that_is_written_and_served(ki
     generator = restyler.model if kind else restyler.model.G_a2b
     assert len(generator.blocks) == 2
     assert {p.shape[0] for name, p in generator.blocks.named_parameters() if name.endswith("c1.weight")} == {40}
+
+
+@needs_data
+def test_a_run_stopped_early_serves_its_last_epoch_from_the_training_checkpoint(tiny_run):
+    """``checkpoint.safetensors`` (rewritten every epoch, generators and discriminators) loads
+    as a model and restyles as the run's last weights (``model-raw``), not as the average."""
+    from stylecast.models import data as D
+    from stylecast.models.restyler import Restyler
+
+    walk = next(f for f in D.list_files(DATA2) if f.name == CLIP.name)
+    words = D.load_motion(walk).rotations[None, :60].astype(np.float64)
+    last = Restyler.load(str(tiny_run / "model-raw.safetensors")).restyle_words(words)
+    from_checkpoint = Restyler.load(str(tiny_run / "checkpoint.safetensors")).restyle_words(words)
+    average = Restyler.load(str(tiny_run / "model.safetensors")).restyle_words(words)
+    np.testing.assert_array_equal(from_checkpoint, last)
+    assert np.abs(average - last).max() > 0  # the check can tell the two apart
