@@ -216,8 +216,19 @@ def _given(**options) -> dict:
     return {k: v for k, v in options.items() if v is not None}
 
 
+# The largest generator ``train`` builds: a live restyler runs a word in milliseconds (the
+# shipped ones are 96 channels x 3 blocks; the widest measured, 192 x 6, took 2.7x as long).
+MAX_WIDTH, MAX_BLOCKS = 1024, 32
+
+
 def _network_options(args) -> dict:
-    """The generator's settings given on the command line, as the network config's fields."""
+    """The generator's settings given on the command line, as the network config's fields;
+    a size no live restyler could run is refused in one sentence before any data is read."""
+    from stylecast.motion.errors import UserError
+
+    for flag, value, most in (("--width", args.width, MAX_WIDTH), ("--blocks", args.blocks, MAX_BLOCKS)):
+        if value is not None and value > most:
+            raise UserError(f"{flag} {value} is more than a live restyler can run; choose at most {most}")
     return _given(correction_knots=args.knots, g_hidden=args.width, g_blocks=args.blocks)
 
 

@@ -255,3 +255,12 @@ def test_a_run_stopped_early_serves_its_last_epoch_from_the_training_checkpoint(
     average = Restyler.load(str(tiny_run / "model.safetensors")).restyle_words(words)
     np.testing.assert_array_equal(from_checkpoint, last)
     assert np.abs(average - last).max() > 0  # the check can tell the two apart
+
+
+@pytest.mark.parametrize("flags, sentence", [(["--width", "5000"], "--width 5000 is more than a live restyler can run; "
+                                              "choose at most 1024"),
+                                             (["--styles", "all", "--blocks", "99"], "--blocks 99 is more than")])
+def test_train_refuses_a_generator_too_big_to_run_live_before_reading_anything(flags, sentence, tmp_path, capsys):
+    code = main(["train", *flags, "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 2 and sentence in err and err.count("\n") == 1 and "Traceback" not in err
