@@ -8,7 +8,8 @@ where model time is free by definition and waiting is what makes replays exact).
 If the worker has fallen behind, the jobs waiting for it are merged into one bigger
 batch: catching up costs one call, not several.
 
-A restyler is any object with ``restyle_words(words (B, 60, J, 4)) -> same shape``.
+A restyler is any object with ``restyle_words(words (B, 60, J, 4)) -> same shape``; each
+word reaches it in one hemisphere over time, made so here for the whole batch.
 An item may carry a fourth element, a style mix (S,) for that word (None: the model's
 own); a batch with any mix in it is ONE call ``restyle_words(words, weights (B, S))``
 of a multi-style model, whatever mix each performer uses.
@@ -140,7 +141,9 @@ class InferenceWorker:
         return restyler.restyle_words(words, np.stack([own if m is None else m for m in mixes]))
 
     def _process(self, items: list) -> None:
-        words = np.stack([item[2] for item in items])
+        # Each word continuous in time, the batch in one pass (the sessions' cutters leave
+        # it to this thread: per word it cost the output loop).
+        words = rot.canonical_hemisphere(np.stack([item[2] for item in items]), axis=1)
         restyler = self._restyler
         t0 = time.perf_counter()
         try:

@@ -103,7 +103,8 @@ class Session:
         self.performer = source.performer
         self.settings = settings  # shared with the daemon and every session: never copied
         self.phase = settings.phase if phase is None else phase
-        self.cutter = WordCutter(settings.hop, settings.word_length, self.phase)
+        # The model thread makes the tick's words continuous, all in one pass (inference.py).
+        self.cutter = WordCutter(settings.hop, settings.word_length, self.phase, continuous=False)
         self.blender = SeamBlender(settings, len(skeleton), phase=self.phase)
         # Planted feet of the input stay planted in the output (after the blender, as
         # offline ``restyle`` does); it looks ahead into the ``delay`` frames buffered.

@@ -138,6 +138,35 @@ def test_the_model_thread_hands_the_blender_words_continuous_in_time():
         assert np.array_equal(word, rot.canonical_hemisphere(raw))
 
 
+class Recording(StandInRestyler):
+    """The stand-in, keeping every batch of words it was given."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen = []
+
+    def restyle_words(self, words):
+        self.seen.append(np.array(words))
+        return super().restyle_words(words)
+
+
+def test_the_model_gets_words_continuous_in_time_from_a_stream_that_flips_signs():
+    """A sender may send q or -q for a rotation, frame by frame. The sessions cut words as
+    the frames came and the model thread makes each tick's batch continuous in one pass;
+    the model must see each word in one hemisphere over time, and restyle the same
+    rotations as from the unflipped stream."""
+    clip = walk_clip(240)
+    flipped = clip.rotations.copy()
+    flipped[1::2] *= -1.0
+    model, reference = Recording(), Recording()
+    run_daemon(Clip(clip.skeleton, flipped, clip.root_positions, clip.fps), model, hop=15)
+    run_daemon(clip, reference, hop=15)
+    words, plain = np.concatenate(model.seen), np.concatenate(reference.seen)
+    assert len(words) == len(plain) > 10
+    assert (np.sum(words[:, 1:] * words[:, :-1], axis=-1) >= 0).all()
+    assert rot.angle_between(words, plain).max() < 1e-9
+
+
 def test_serve_feet_stance_is_restyle_feet_stance():
     """``serve --feet stance`` reaches every session's foot lock: the daemon sends what
     ``restyle --live --feet stance`` writes, and that differs from the default lock."""
