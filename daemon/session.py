@@ -37,7 +37,8 @@ from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, push_f
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
-from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, planned_mix, render_planned
+from stylecast.motion.words import (BlendSettings, SeamBlender, WordCutter, plan_frames, planned_mix,
+                                   render_planned)
 
 from .status import LatencyWindow
 
@@ -59,15 +60,17 @@ class OutputFrame:
 
 @dataclass(eq=False)
 class PendingFrame:
-    """A new output frame from ``Session.begin_render`` to ``finish_render``: the seam
-    blender's planned runs, to be rendered, low-passed and foot-locked with the other
-    performers' frames of the tick (``settle_frames``)."""
+    """A new output frame from ``Session.begin_render`` to ``finish_render``, to be planned
+    by the seam blender, rendered, low-passed and foot-locked with the other performers'
+    frames of the tick (``settle_frames``)."""
 
     index: int
     arrival: float
     input_root: np.ndarray
     input_rotations: np.ndarray  # (J, 4)
-    runs: list  # SeamBlender.plan_block's
+    intensity: float
+    active: bool  # restyled words may be shown (not bypassed or resuming)
+    runs: list | None = None  # the seam blender's plan (``plan_frames``)
     lock: LockJob | None = None  # the foot lock's job, solved
 
 
@@ -82,10 +85,15 @@ def push_feet(sessions: list) -> None:
 
 def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> None:
     """The rest of one new frame of each session, each stage one vectorised pass over all
-    of them: the seam blender's render, the correction low-pass, then the foot lock and the
-    pelvis height. Sets each pending frame's ``lock`` (its solved job)."""
+    of them: the seam blender's plan and render, the correction low-pass, then the foot
+    lock and the pelvis height. Sets each pending frame's ``runs`` and ``lock`` (its
+    solved job)."""
     if not pending:
         return
+    planned = plan_frames([(s.blender, p.index, p.input_rotations, p.intensity, p.active)
+                           for s, p in zip(sessions, pending)])
+    for frame, runs in zip(pending, planned):
+        frame.runs = runs
     inputs = np.stack([p.input_rotations for p in pending])
     blended = render_planned([(s.blender, p.runs, inputs[k:k + 1]) for k, (s, p) in enumerate(zip(sessions, pending))])
     smoothed = filter_frames([s.smoothing for s in sessions], inputs, np.concatenate(blended))
@@ -265,7 +273,7 @@ class Session:
         return self.finish_render(step)
 
     def begin_render(self, drain: bool = False) -> "PendingFrame | OutputFrame | None":
-        """``render`` up to the seam blender's plan: a new frame is returned pending (for
+        """``render`` up to the seam blender: a new frame is returned pending (for
         ``settle_frames``), anything else as ``render`` returns it."""
         newest = self.cutter.frames_seen - 1
         target = newest - self.settings.delay
@@ -303,10 +311,9 @@ class Session:
         t = self.out_t
         _, arrival, root, input_rot = self._input(t)
         active = (not self.bypass) and self.blender.serving_word(t) >= self._resume_end
-        runs = self.blender.plan_block(t, input_rot[None], self.intensity, active)
         self.out_t = t + 1
         self.frames_out += 1
-        return PendingFrame(t, arrival, root, input_rot, runs)
+        return PendingFrame(t, arrival, root, input_rot, self.intensity, active)
 
     def finish_render(self, pending: PendingFrame) -> OutputFrame:
         """The frame ``begin_render`` left pending, settled (``settle_frames``)."""

@@ -249,3 +249,43 @@ def test_streams_filtered_together_a_frame_a_tick_equal_each_filtered_alone():
     out = filter_frames(mixed, np.stack([motions[0][0]] * 2), np.stack([restyled[0][0]] * 2))
     assert rot.angle_between(out[1], restyled[0][0]).max() < 1e-9
 
+
+
+def test_blenders_planned_together_a_frame_a_tick_equal_each_planned_alone():
+    """The daemon plans every performer's frame of a tick in one ``plan_frames`` call (the
+    seam springs and the switches of word as arrays for all); each blender must plan what
+    its own ``plan_block`` plans: the same runs, the same output, the same state after,
+    through switches, late words, a crossfade, an intensity change and blending off."""
+    from stylecast.motion.words import plan_frames
+
+    motions = [smooth_motion(200, seed=k) for k in range(4)]
+    settings = [BlendSettings(hop=4, delay=5), BlendSettings(hop=4, delay=5, phase=2),
+                BlendSettings(hop=15, delay=15), BlendSettings(hop=4, delay=5, decay_frames=0)]
+    restyle = biased_restyler()
+    pairs = []
+    for motion, s in zip(motions, settings):
+        ends, words = cut_words(motion, s.hop, s.word_length, s.phase)
+        restyled = restyle(words)
+        pairs.append([(SeamBlender(s, J), SeamBlender(s, J)), ends, restyled])
+    for t in range(200):
+        for k, ((together, alone), ends, restyled) in enumerate(pairs):
+            for end, word in zip(ends, restyled):
+                # words arrive as the frames they end on come in, except a gap of late words
+                if end == t + settings[k].delay - settings[k].hop and not 90 <= end < 110:
+                    together.add_word(int(end), word)
+                    alone.add_word(int(end), word)
+        intensity = 1.0 if t < 150 else 0.6
+        items = [(together, t, m[t], intensity, t < 170 or k % 2) for k, ((together, _), _, _), m
+                 in zip(range(4), pairs, motions)]
+        planned = plan_frames(items)
+        for (together, alone), runs, (_, _, x, _, active) in zip((p[0] for p in pairs), planned, items):
+            expected = alone.plan_block(t, x[None], intensity, active)
+            got = render_planned([(together, runs, x[None])])[0]
+            want = render_planned([(alone, expected, x[None])])[0]
+            assert rot.angle_between(got, want).max() < 1e-9, t
+            assert [r[:2] for r in runs] == [r[:2] for r in expected]
+            np.testing.assert_allclose(together._offset, alone._offset, atol=1e-12)
+            np.testing.assert_allclose(together._offset_velocity, alone._offset_velocity, atol=1e-12)
+            assert (together.mix, together.late_frames, together._serving) == (alone.mix, alone.late_frames,
+                                                                             alone._serving)
+    assert all(p[0][0].late_frames > 0 for p in pairs)  # the gap really went through the late path
