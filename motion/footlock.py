@@ -610,9 +610,10 @@ class FootLock:
         self.frames = 0  # input frames pushed
         self._planted = np.zeros(2, dtype=bool)  # hysteresis state per foot
         self._floor_history: deque = deque(maxlen=settings.floor_window)  # lower ball height per frame
-        self._previous = None  # (ankles, balls) of the last pushed frame: two [x, y, z] each
-        self._contacts = np.zeros((0, 2), dtype=bool)  # contacts of frames _base ..
-        self._floors = np.zeros(0)  # ...and the floor height seen at each (-inf: none known yet)
+        self._previous = None  # (2, 2, 3): the last pushed frame's ankles and balls, each foot's [x, y, z]
+        # The contacts (left, right) of frames _base .. and the floor height seen at each
+        # (-inf: none known yet): columns of one history.
+        self._history = _History(3)
         self._base = 0
         self.planted_frames = 0  # counters (tests, benchmarks)
         self.locked_frames = 0
@@ -644,15 +645,22 @@ class FootLock:
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
         rotations = np.asarray(rotations, dtype=np.float64).reshape(len(roots), -1, 4)
         if len(roots) == 1:
-            contacts, lowest = self._contacts_of_one_frame(*_feet_of_one_frame(roots[0], rotations[0],
-                                                                                 self._leg_offsets))
+            ankles, balls = _feet_of_one_frame(roots[0], rotations[0], self._leg_offsets)
+            contacts, lowest = _contacts_of_locks([self], np.array([ankles]), np.array([balls]))
         else:
             contacts, lowest = self._contacts_of_frames(roots, rotations)
         return self._record(contacts, lowest)
 
+    @property
+    def _contacts(self) -> np.ndarray:
+        return self._history.rows[:, :2] > 0
+
+    @property
+    def _floors(self) -> np.ndarray:
+        return self._history.rows[:, 2]
+
     def _record(self, contacts: np.ndarray, lowest: np.ndarray) -> np.ndarray:
         self._planted = contacts[-1].copy()
-        self._contacts = np.concatenate([self._contacts, contacts])
         # A floor is known once a foot has stood on it: before a stream's first contact the
         # lowest ball seen may be a foot in the air (a stream started mid-step or with
         # made-up motion: 35 cm up, falling 3.5 cm in a frame as lower steps came, and the
@@ -660,7 +668,7 @@ class FootLock:
         # above nothing (-inf) until then. (Only then: no work per frame once a foot has stood.)
         if not self.planted_frames:
             lowest = np.where(np.cumsum(contacts.any(axis=1)) > 0, lowest, -np.inf)
-        self._floors = np.concatenate([self._floors, lowest])
+        self._history.extend(np.column_stack([contacts, lowest]))
         self.frames += len(contacts)
         self.planted_frames += int(contacts.sum())
         return contacts
@@ -676,36 +684,14 @@ class FootLock:
             lowest[i] = min(self._floor_history)
         # The ball rests at the floor, the ankle one foot-height above it.
         height = np.minimum(ball[:, :, 1] - lowest[:, None], ankle[:, :, 1] - lowest[:, None] - self._ankle_rest)
-        prev = (np.array([self._previous[0]]), np.array([self._previous[1]])) if self._previous else (ankle[:1], ball[:1])
+        prev = self._previous[:, None] if self._previous is not None else (ankle[:1], ball[:1])
         speed = np.minimum(_speeds(np.concatenate([prev[0], ankle])), _speeds(np.concatenate([prev[1], ball])))
         if self._previous is None:
             speed[0] = np.inf  # a stream's first frame has no speed yet: not planted
-        self._previous = (ankle[-1].tolist(), ball[-1].tolist())
+        self._previous = np.stack([ankle[-1], ball[-1]])
         plant = (height < s.plant_height) & (speed < s.plant_speed)
         release = (height > s.release_height) | (speed > s.release_speed)
         return _hysteresis(plant, release, self._planted), lowest
-
-    def _contacts_of_one_frame(self, ankles, balls) -> tuple[np.ndarray, np.ndarray]:
-        """``_contacts_of_frames`` for one frame's feet (ankle and ball positions, [x, y, z]
-        each, of both legs) on Python floats: the daemon pushes one frame per performer per
-        tick, where numpy's per-call cost was most of the work (measured 0.32 of 0.35 ms a
-        frame under the profiler); the stream-vs-clip test checks it."""
-        s = self.settings
-        self._floor_history.append(min(balls[0][1], balls[1][1]))
-        lowest = min(self._floor_history)
-        previous, self._previous = self._previous, (ankles, balls)
-        contacts = []
-        for foot, planted in enumerate(self._planted.tolist()):
-            ankle, ball = ankles[foot], balls[foot]
-            height = min(ball[1] - lowest, ankle[1] - lowest - self._ankle_rest)
-            speed = math.inf if previous is None else min(math.dist(ankle, previous[0][foot]),
-                                                          math.dist(ball, previous[1][foot]))
-            if height < s.plant_height and speed < s.plant_speed:
-                planted = True
-            elif height > s.release_height or speed > s.release_speed:
-                planted = False
-            contacts.append(planted)
-        return np.array([contacts]), np.array([lowest])
 
     # -- output side --------------------------------------------------------------------
     def weights(self, t0: int, n: int) -> np.ndarray:
@@ -714,9 +700,9 @@ class FootLock:
         lo = t0 - r - self._base  # the contacts t0 - r .. t0 + n - 1 + r, zero where not known
         hi = lo + n + 2 * r
         c = np.zeros((n + 2 * r, 2))
-        a, b = max(lo, 0), min(hi, len(self._contacts))
+        a, b = max(lo, 0), min(hi, len(self._history))
         if a < b:
-            c[a - lo:b - lo] = self._contacts[a:b]
+            c[a - lo:b - lo] = self._history.rows[a:b, :2]
         if r == 0:
             return c
         if n == 1:  # the daemon's case, one frame per tick: one window, no view to build
@@ -742,7 +728,8 @@ class FootLock:
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
         w = self.weights(t0, len(roots))
         self._forget_before(t0 - self.ramp)
-        floor = self._floors[np.arange(t0, t0 + len(roots)) - self._base]
+        floor = self._history.rows[t0 - self._base:t0 - self._base + len(roots), 2]
+        assert len(floor) == len(roots), "output frames the lock has no input for"
         return LockJob(self, t0, roots, np.asarray(inputs, dtype=np.float64), np.asarray(outputs, dtype=np.float64),
                        w, floor, mix)
 
@@ -757,8 +744,7 @@ class FootLock:
     def _forget_before(self, t: int) -> None:
         drop = t - self._base
         if drop > 256:  # trim in chunks: a long stream keeps a bounded history
-            self._contacts = self._contacts[drop:]
-            self._floors = self._floors[drop:]
+            self._history.drop(drop)
             self._base += drop
 
 
@@ -767,14 +753,107 @@ def push_frames(rows: list) -> None:
     for many locks at once (a lock's rows in its frames' order): the daemon's tick. The
     legs' forward kinematics of every row in one vectorised ``leg_chain``, each row with
     its lock's proportions (one frame's on Python floats was 18 of a push's 30 us, per
-    performer and frame), then each lock's contact state row by row, as ``push`` keeps it."""
+    performer and frame), then the contacts of every lock's next frame in one pass
+    (``_contacts_of_locks``; a lock with several frames this tick takes several passes)."""
     if not rows:
         return
     pos, _, _ = leg_chain(np.array([root for _, root, _ in rows], dtype=np.float64),
                           np.array([rotations for _, _, rotations in rows], dtype=np.float64),
                           np.array([lock.offsets for lock, _, _ in rows]))
-    for (lock, _, _), ankles, balls in zip(rows, pos[:, :, 2].tolist(), pos[:, :, 3].tolist()):
-        lock._record(*lock._contacts_of_one_frame(ankles, balls))
+    passes: list[list[int]] = []  # rows by pass: each lock's n-th frame of the tick in pass n
+    frames_of: dict[int, int] = {}
+    for i, (lock, _, _) in enumerate(rows):
+        n = frames_of.get(id(lock), 0)
+        frames_of[id(lock)] = n + 1
+        if n == len(passes):
+            passes.append([])
+        passes[n].append(i)
+    for at in passes:
+        locks = [rows[i][0] for i in at]
+        contacts, lowest = _contacts_of_locks(locks, pos[at, :, 2], pos[at, :, 3])
+        # Each lock's record (``_record``) of its one frame: the floor unknown (-inf) until
+        # a foot of the stream has stood.
+        known = contacts.any(axis=1) | np.array([lock.planted_frames > 0 for lock in locks])
+        records = np.column_stack([contacts, np.where(known, lowest, -np.inf)])
+        for lock, row, planted, count in zip(locks, records, contacts, contacts.sum(axis=1).tolist()):
+            lock._planted = planted
+            lock._history.append(row)
+            lock.frames += 1
+            lock.planted_frames += count
+
+
+class _History:
+    """Rows of numbers appended at the end and dropped from the front, in one preallocated
+    array: appending a frame by concatenation copied the whole history every frame, per
+    performer."""
+
+    def __init__(self, columns: int, capacity: int = 512):
+        self._rows = np.zeros((capacity, columns))
+        self._count = 0
+
+    def __len__(self) -> int:
+        return self._count
+
+    @property
+    def rows(self) -> np.ndarray:
+        return self._rows[:self._count]
+
+    def _room(self, n: int) -> None:
+        if self._count + n > len(self._rows):
+            grown = np.zeros((max(2 * len(self._rows), self._count + n), self._rows.shape[1]))
+            grown[:self._count] = self.rows
+            self._rows = grown
+
+    def append(self, row: np.ndarray) -> None:
+        self._room(1)
+        self._rows[self._count] = row
+        self._count += 1
+
+    def extend(self, rows: np.ndarray) -> None:
+        self._room(len(rows))
+        self._rows[self._count:self._count + len(rows)] = rows
+        self._count += len(rows)
+
+    def drop(self, n: int) -> None:
+        """Forget the first ``n`` rows."""
+        kept = self._rows[n:self._count].copy()
+        self._rows[:len(kept)] = kept
+        self._count = len(kept)
+
+
+def _contacts_of_locks(locks: list[FootLock], ankles: np.ndarray, balls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One input frame of each of many locks (each lock once), its ankles and balls (P, 2,
+    3) -> contacts (P, 2) and floor heights (P,), each lock's state carried on as
+    ``_contacts_of_frames`` carries it for one lock's frames (the same arithmetic: the
+    stream-vs-clip test holds them equal). One pass for all: per lock and frame, numpy's
+    per-call cost was most of the contact test's cost."""
+    feet = np.stack([ankles, balls], axis=1)  # (P, ankle/ball, foot, xyz)
+    previous = feet.copy()
+    started = np.ones(len(locks), dtype=bool)
+    planted = np.empty((len(locks), 2), dtype=bool)
+    lowest = np.empty(len(locks))
+    rest = np.empty(len(locks))
+    thresholds = np.empty((len(locks), 4))
+    for k, (lock, ball) in enumerate(zip(locks, balls[:, :, 1].min(axis=1).tolist())):
+        # Floor: the lowest ball height over the lock's window, this frame included (causal).
+        lock._floor_history.append(ball)
+        lowest[k] = min(lock._floor_history)
+        if lock._previous is None:
+            started[k] = False
+        else:
+            previous[k] = lock._previous
+        lock._previous = feet[k]
+        planted[k] = lock._planted
+        rest[k] = lock._ankle_rest
+        s = lock.settings
+        thresholds[k] = (s.plant_height, s.plant_speed, s.release_height, s.release_speed)
+    # The ball rests at the floor, the ankle one foot-height above it.
+    height = np.minimum(balls[:, :, 1] - lowest[:, None], ankles[:, :, 1] - lowest[:, None] - rest[:, None])
+    speed = np.linalg.norm(feet - previous, axis=-1).min(axis=1)
+    speed[~started] = np.inf  # a stream's first frame has no speed yet: not planted
+    plant = (height < thresholds[:, :1]) & (speed < thresholds[:, 1:2])
+    release = (height > thresholds[:, 2:3]) | (speed > thresholds[:, 3:4])
+    return np.where(plant, True, np.where(release, False, planted)), lowest
 
 
 @dataclass(eq=False)

@@ -721,3 +721,41 @@ def test_a_stance_that_fades_in_with_the_stream_is_taken_then_kept():
         assert horizontal_speed(p[92:, :, 2]).max() < STANCE.stance_rate + 1e-6  # still once settled
     np.testing.assert_allclose(got[91][91:], wanted[91:], atol=0.05)  # the faded-in stance is taken
     assert got[0][-1] < wanted[-1] - 5.0  # without the settling it would only have crept towards it
+
+
+def test_a_foot_lifted_slowly_through_the_hysteresis_band_is_found_alike_one_frame_at_a_time_and_whole():
+    """A foot raised slowly (under the plant speed) from the floor to 12 cm, held, and let
+    down again: it stays planted until it is higher than the release height and plants again
+    only below the plant height. Frame by frame (``push`` of one frame), a tick of several
+    performers (``push_frames``) and the whole clip must find the same contacts."""
+    frames = 360
+    roots, q = stepping(frames)
+    lift = np.interp(np.arange(frames), [0, 60, 150, 210, 300, frames], [0, 0, 1, 1, 0, 0])
+    for bone, angle, soft in (("RightUpperLeg", -0.9, -0.2), ("RightLowerLeg", 1.4, 0.4)):
+        j = HUMANOID_BONES.index(bone)
+        q[:, j] = rot.multiply(rot.exp_map(np.outer(angle * lift, [1.0, 0.0, 0.0])),
+                               rot.exp_map(np.array([soft, 0.0, 0.0])))
+    pos, _, _ = leg_chain(roots, q, SK.offsets)
+    height = pos[:, 1, 3, 1] - pos[:, :, 3, 1].min()  # the right ball above the lowest ball
+    speed = np.linalg.norm(np.diff(pos[:, 1, 3], axis=0), axis=-1)
+    settings = ContactSettings()
+    assert height.max() > settings.release_height + 3 and speed.max() < settings.plant_speed
+    assert np.sum((height > settings.plant_height) & (height < settings.release_height)) > 20  # the band, slowly
+
+    whole = FootLock(SK).push(roots, q)
+    single = FootLock(SK)
+    one_at_a_time = np.concatenate([single.push(roots[t:t + 1], q[t:t + 1]) for t in range(frames)])
+    small, small_roots = SK.with_offsets(SK.offsets * 0.85), roots * [1, 0.85, 1]  # a second performer
+    ticked = [FootLock(SK), FootLock(small)]
+    for t in range(frames):
+        push_frames([(ticked[0], roots[t], q[t]), (ticked[1], small_roots[t], q[t])])
+    np.testing.assert_array_equal(one_at_a_time, whole)
+    np.testing.assert_array_equal(ticked[0]._contacts, whole)
+    np.testing.assert_array_equal(ticked[1]._contacts, FootLock(small).push(small_roots, q))
+    right = whole[:, 1].copy()
+    right[0] = True  # (a stream's first frame has no speed, so no contact: not a landing)
+    lifted, landed = np.flatnonzero(right[:-1] & ~right[1:]) + 1, np.flatnonzero(~right[:-1] & right[1:]) + 1
+    assert len(lifted) == len(landed) == 1 and lifted[0] < landed[0]
+    assert height[lifted[0]] > settings.release_height and height[lifted[0] - 1] > settings.plant_height
+    assert height[landed[0]] < settings.plant_height and height[landed[0] - 1] < settings.release_height
+    assert whole[1:, 0].all()  # the standing foot never lets go
