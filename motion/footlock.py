@@ -611,9 +611,9 @@ class FootLock:
         self._planted = np.zeros(2, dtype=bool)  # hysteresis state per foot
         self._floor_history: deque = deque(maxlen=settings.floor_window)  # lower ball height per frame
         self._previous = None  # (2, 2, 3): the last pushed frame's ankles and balls, each foot's [x, y, z]
-        # The contacts (left, right) of frames _base .. and the floor height seen at each
-        # (-inf: none known yet): columns of one history.
-        self._history = _History(3)
+        # Per input frame from _base on: the contacts (left, right), the floor height seen
+        # (-inf: none known yet) and both feet's ankle and ball, columns of one history.
+        self._history = _History(_HISTORY_COLUMNS)
         self._base = 0
         self.planted_frames = 0  # counters (tests, benchmarks)
         self.locked_frames = 0
@@ -644,22 +644,25 @@ class FootLock:
         their contacts (n, 2) bool (left, right)."""
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
         rotations = np.asarray(rotations, dtype=np.float64).reshape(len(roots), -1, 4)
+        ankle, ball = self._feet(roots, rotations)
         if len(roots) == 1:
-            ankles, balls = _feet_of_one_frame(roots[0], rotations[0], self._leg_offsets)
-            contacts, lowest = _contacts_of_locks([self], np.array([ankles]), np.array([balls]))
+            contacts, lowest = _contacts_of_locks([self], ankle, ball)
         else:
-            contacts, lowest = self._contacts_of_frames(roots, rotations)
-        return self._record(contacts, lowest)
+            contacts, lowest = self._contacts_of_frames(ankle, ball)
+        return self._record(contacts, lowest, np.stack([ankle, ball], axis=1))
 
     @property
     def _contacts(self) -> np.ndarray:
-        return self._history.rows[:, :2] > 0
+        return self._history.rows[:, _CONTACTS] > 0
 
     @property
     def _floors(self) -> np.ndarray:
-        return self._history.rows[:, 2]
+        return self._history.rows[:, _FLOOR]
 
-    def _record(self, contacts: np.ndarray, lowest: np.ndarray) -> np.ndarray:
+    def _record(self, contacts: np.ndarray, lowest: np.ndarray, feet: np.ndarray) -> np.ndarray:
+        """Input frames' contacts (n, 2), floor heights (n,) and feet (n, ankle/ball, foot,
+        xyz) into the history (the output side reads the feet there rather than run the
+        input's legs again)."""
         self._planted = contacts[-1].copy()
         # A floor is known once a foot has stood on it: before a stream's first contact the
         # lowest ball seen may be a foot in the air (a stream started mid-step or with
@@ -668,17 +671,17 @@ class FootLock:
         # above nothing (-inf) until then. (Only then: no work per frame once a foot has stood.)
         if not self.planted_frames:
             lowest = np.where(np.cumsum(contacts.any(axis=1)) > 0, lowest, -np.inf)
-        self._history.extend(np.column_stack([contacts, lowest]))
+        self._history.extend(np.column_stack([contacts, lowest, feet.reshape(len(feet), -1)]))
         self.frames += len(contacts)
         self.planted_frames += int(contacts.sum())
         return contacts
 
-    def _contacts_of_frames(self, roots: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Contacts (n, 2) and floor heights (n,) of input frames, the state carried on."""
-        ankle, ball = self._feet(roots, rotations)
+    def _contacts_of_frames(self, ankle: np.ndarray, ball: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Contacts (n, 2) and floor heights (n,) of input frames, from their ankles and
+        balls (n, 2, 3), the state carried on."""
         s = self.settings
         # Floor: the lowest ball height over the window, this frame included (causal).
-        lowest = np.empty(len(roots))
+        lowest = np.empty(len(ball))
         for i, h in enumerate(ball[:, :, 1].min(axis=1).tolist()):
             self._floor_history.append(h)
             lowest[i] = min(self._floor_history)
@@ -702,7 +705,7 @@ class FootLock:
         c = np.zeros((n + 2 * r, 2))
         a, b = max(lo, 0), min(hi, len(self._history))
         if a < b:
-            c[a - lo:b - lo] = self._history.rows[a:b, :2]
+            c[a - lo:b - lo] = self._history.rows[a:b, _CONTACTS]
         if r == 0:
             return c
         if n == 1:  # the daemon's case, one frame per tick: one window, no view to build
@@ -716,7 +719,9 @@ class FootLock:
         and restyled rotations (n, J, 4), and the share of the restyle shown in each (n,)
         (the seam blender's mix, ``words.planned_mix``; None: all of it) -> the output's
         roots (the pelvis height and the pace set) and rotations (planted feet locked).
-        ``plan`` then ``solve_lock_jobs`` for one lock."""
+        The inputs are the frames ``push`` was given for t0 .. t0+n-1: their feet are read
+        from what was pushed, not worked out again. ``plan`` then ``solve_lock_jobs`` for
+        one lock."""
         job = self.plan(t0, roots, inputs, outputs, mix)
         solve_lock_jobs([job])
         return job.new_roots, job.result
@@ -728,10 +733,10 @@ class FootLock:
         roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
         w = self.weights(t0, len(roots))
         self._forget_before(t0 - self.ramp)
-        floor = self._history.rows[t0 - self._base:t0 - self._base + len(roots), 2]
-        assert len(floor) == len(roots), "output frames the lock has no input for"
+        pushed = self._history.rows[t0 - self._base:t0 - self._base + len(roots)]
+        assert len(pushed) == len(roots), "output frames the lock has no input for"
         return LockJob(self, t0, roots, np.asarray(inputs, dtype=np.float64), np.asarray(outputs, dtype=np.float64),
-                       w, floor, mix)
+                       w, pushed[:, _FLOOR], mix, own=pushed[:, _FEET].reshape(len(roots), 2, 2, 3))
 
     def _feet(self, roots: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ankle and ball positions (n, 2, 3) of both legs."""
@@ -774,12 +779,18 @@ def push_frames(rows: list) -> None:
         # Each lock's record (``_record``) of its one frame: the floor unknown (-inf) until
         # a foot of the stream has stood.
         known = contacts.any(axis=1) | np.array([lock.planted_frames > 0 for lock in locks])
-        records = np.column_stack([contacts, np.where(known, lowest, -np.inf)])
+        feet = np.stack([pos[at, :, 2], pos[at, :, 3]], axis=1).reshape(len(at), -1)
+        records = np.column_stack([contacts, np.where(known, lowest, -np.inf), feet])
         for lock, row, planted, count in zip(locks, records, contacts, contacts.sum(axis=1).tolist()):
             lock._planted = planted
             lock._history.append(row)
             lock.frames += 1
             lock.planted_frames += count
+
+
+# The columns of a lock's per-frame history (``FootLock._history``).
+_CONTACTS, _FLOOR, _FEET = slice(0, 2), 2, slice(3, 15)  # _FEET: (ankle, ball) x (left, right) x xyz
+_HISTORY_COLUMNS = 15
 
 
 class _History:
@@ -860,8 +871,9 @@ def _contacts_of_locks(locks: list[FootLock], ankles: np.ndarray, balls: np.ndar
 class LockJob:
     """One lock's output frames t0 .. t0+n-1 from ``FootLock.plan`` to ``solve_lock_jobs``:
     input ``roots`` (n, 3), input and restyled rotations (n, J, 4), lock ``weights`` (n, 2),
-    the ``floor`` (n,) and the restyle's ``mix`` (n,) or None. Solving fills in ``new_roots``
-    (the pelvis height and the pace set) and ``result``, the locked rotations."""
+    the ``floor`` (n,), the restyle's ``mix`` (n,) or None, and the input's feet ``own`` (n,
+    ankle/ball, foot, xyz) as pushed. Solving fills in ``new_roots`` (the pelvis height and
+    the pace set) and ``result``, the locked rotations."""
 
     lock: FootLock
     t0: int
@@ -871,6 +883,7 @@ class LockJob:
     weights: np.ndarray
     floor: np.ndarray
     mix: np.ndarray | None = None
+    own: np.ndarray | None = None
     new_roots: np.ndarray | None = None
     result: np.ndarray | None = None
 
@@ -905,7 +918,8 @@ class _Rows:
         stack = (lambda f: f(jobs[0])) if len(jobs) == 1 else (lambda f: np.concatenate([f(j) for j in jobs]))
         self.roots, self.inputs, self.outputs = stack(lambda j: j.roots), stack(lambda j: j.inputs), \
             stack(lambda j: j.outputs)
-        self.weights, self.floor = stack(lambda j: j.weights), stack(lambda j: j.floor)
+        self.weights, self.floor, self.own_feet = stack(lambda j: j.weights), stack(lambda j: j.floor), \
+            stack(lambda j: j.own)
         # (J, 3) for one lock, (rows, J, 3) for several (leg_chain takes either)
         self.offsets = jobs[0].lock.offsets if len(jobs) == 1 else \
             np.repeat(np.stack([j.lock.offsets for j in jobs]), sizes, axis=0)
@@ -921,16 +935,17 @@ class _Rows:
 
 
 def _advance(rows: _Rows) -> None:
-    """Where the restyled feet stand against the input's (every row's legs in one forward
-    kinematics call each for the input and the restyle): the ankles' height gap sets the
-    pelvis, the rest the stance (``--feet stance``); each lock's state moves on, in order."""
+    """Where the restyled feet stand against the input's (the input's as they were pushed,
+    the restyle's legs in one forward kinematics call for every row): the ankles' height
+    gap sets the pelvis, the rest the stance (``--feet stance``); each lock's state moves
+    on, in order."""
     jobs = rows.jobs
+    own = (rows.own_feet[:, 0], rows.own_feet[:, 1])
     if len(jobs) == 1:  # one lock (one performer, or a clip): its own path, floats for one frame
-        own, restyled = jobs[0].lock._feet(rows.roots, rows.inputs), jobs[0].lock._feet(rows.roots, rows.outputs)
+        restyled = jobs[0].lock._feet(rows.roots, rows.outputs)
     else:
-        pos_in, _, _ = leg_chain(rows.roots, rows.inputs, rows.offsets)
         pos_out, _, _ = leg_chain(rows.roots, rows.outputs, rows.offsets)
-        own, restyled = (pos_in[:, :, 2], pos_in[:, :, 3]), (pos_out[:, :, 2], pos_out[:, :, 3])
+        restyled = (pos_out[:, :, 2], pos_out[:, :, 3])
     rows.own = own  # the input's ankles and balls: the lock's targets and the floor's ceiling
     gap = restyled[0][..., 1] - own[0][..., 1]  # (rows, 2)
     rows.new_roots = rows.roots.copy()
