@@ -33,7 +33,7 @@ import numpy as np
 
 from stylecast.motion.clip import PoseFrame
 from stylecast.motion.clock import OUTPUT_FPS
-from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, push_frames, solve_lock_jobs
+from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, plan_locks, push_frames, solve_lock_jobs
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
@@ -97,10 +97,11 @@ def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> Non
     inputs = np.stack([p.input_rotations for p in pending])
     blended = render_planned([(s.blender, p.runs, inputs[k:k + 1]) for k, (s, p) in enumerate(zip(sessions, pending))])
     smoothed = filter_frames([s.smoothing for s in sessions], inputs, np.concatenate(blended))
-    for k, (session, frame) in enumerate(zip(sessions, pending)):
-        frame.lock = session.feet.plan(frame.index, frame.input_root, frame.input_rotations[None], smoothed[k:k + 1],
-                                       planned_mix(frame.runs, 1))
-    solve_lock_jobs([frame.lock for frame in pending])
+    jobs = plan_locks([(s.feet, p.index, p.input_root, p.input_rotations, smoothed[k], planned_mix(p.runs, 1))
+                       for k, (s, p) in enumerate(zip(sessions, pending))])
+    for frame, job in zip(pending, jobs):
+        frame.lock = job
+    solve_lock_jobs(jobs)
 
 
 class Session:

@@ -867,6 +867,33 @@ def _contacts_of_locks(locks: list[FootLock], ankles: np.ndarray, balls: np.ndar
     return np.where(plant, True, np.where(release, False, planted)), lowest
 
 
+def plan_locks(items: list) -> list["LockJob"]:
+    """``FootLock.plan`` of one output frame for each of many locks, (lock, t, input root
+    (3,), input rotations (J, 4), restyled rotations (J, 4), mix (1,) or None), the daemon's
+    tick: the lock weights of all in one pass (per lock, the window's few numpy calls were
+    most of ``plan``). Locks of different ramps plan one by one."""
+    if len({lock.ramp for lock, *_ in items}) > 1:
+        return [lock.plan(t, root, inputs[None], outputs[None], mix) for lock, t, root, inputs, outputs, mix in items]
+    r = items[0][0].ramp if items else 0
+    windows = np.zeros((len(items), 2 * r + 1, 2))  # contacts t - r .. t + r, zero where not known
+    pushed = np.empty((len(items), _HISTORY_COLUMNS))
+    for k, (lock, t, *_) in enumerate(items):
+        history, lo = lock._history, t - r - lock._base
+        a, b = max(lo, 0), min(lo + 2 * r + 1, len(history))
+        if a < b:
+            windows[k, a - lo:b - lo] = history.rows[a:b, _CONTACTS]
+        if not 0 <= t - lock._base < len(history):
+            raise IndexError("an output frame the lock has no input for")
+        pushed[k] = history.rows[t - lock._base]
+        lock._forget_before(t - r)
+    weights = (windows * items[0][0]._blend[None, :, None]).max(axis=1) if items else windows[:, 0]
+    own = pushed[:, _FEET].reshape(len(items), 2, 2, 3)
+    return [LockJob(lock, t, np.asarray(root, dtype=np.float64).reshape(1, 3), np.asarray(inputs, dtype=np.float64)[None],
+                    np.asarray(outputs, dtype=np.float64)[None], weights[k:k + 1], pushed[k:k + 1, _FLOOR], mix,
+                    own=own[k:k + 1])
+            for k, (lock, t, root, inputs, outputs, mix) in enumerate(items)]
+
+
 @dataclass(eq=False)
 class LockJob:
     """One lock's output frames t0 .. t0+n-1 from ``FootLock.plan`` to ``solve_lock_jobs``:

@@ -11,7 +11,7 @@ import pytest
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import (FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, PelvisHeight, StanceOffset,
-                                      _hysteresis, leg_chain, push_frames, solve_legs, solve_lock_jobs)
+                                      _hysteresis, leg_chain, plan_locks, push_frames, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
@@ -759,3 +759,31 @@ def test_a_foot_lifted_slowly_through_the_hysteresis_band_is_found_alike_one_fra
     assert height[lifted[0]] > settings.release_height and height[lifted[0] - 1] > settings.plant_height
     assert height[landed[0]] < settings.plant_height and height[landed[0] - 1] < settings.release_height
     assert whole[1:, 0].all()  # the standing foot never lets go
+
+
+@pytest.mark.parametrize("ramps", [(4, 4, 4), (4, 2, 0)])
+def test_locks_planned_in_one_call_plan_what_each_plans_alone(ramps):
+    """The daemon plans every performer's frame of a tick in one call (``plan_locks``: the
+    lock weights of all in one pass); each job must be the one ``FootLock.plan`` makes,
+    weights through touch-downs and lift-offs, floor and the input's feet, past the
+    trimming of the histories (locks of different ramps plan one by one)."""
+    roots, q = stepping(400)
+    out = restyled(q)
+    sizes = (1.0, 0.85, 1.1)
+    together = [FootLock(SK.with_offsets(SK.offsets * k), ramp=r) for k, r in zip(sizes, ramps)]
+    alone = [FootLock(SK.with_offsets(SK.offsets * k), ramp=r) for k, r in zip(sizes, ramps)]
+    scaled = [roots * [1, k, 1] for k in sizes]
+    for t in range(len(q)):
+        for a, b, r in zip(together, alone, scaled):
+            a.push(r[t:t + 1], q[t:t + 1])
+            b.push(r[t:t + 1], q[t:t + 1])
+        k = t - max(ramps)
+        if k < 0:
+            continue
+        jobs = plan_locks([(lock, k, r[k], q[k], out[k], None) for lock, r in zip(together, scaled)])
+        for job, lock, r in zip(jobs, alone, scaled):
+            expected = lock.plan(k, r[k:k + 1], q[k:k + 1], out[k:k + 1])
+            for name in ("roots", "inputs", "outputs", "weights", "floor", "own"):
+                np.testing.assert_array_equal(getattr(job, name), getattr(expected, name), err_msg=name)
+    assert all(0 < lock.planted_frames < 2 * len(q) for lock in together)
+    assert len({lock._base for lock in together}) == 1 and together[0]._base > 0  # the histories were trimmed alike
