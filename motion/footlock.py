@@ -692,8 +692,8 @@ class FootLock:
         if self._previous is None:
             speed[0] = np.inf  # a stream's first frame has no speed yet: not planted
         self._previous = np.stack([ankle[-1], ball[-1]])
-        plant = (height < s.plant_height) & (speed < s.plant_speed)
-        release = (height > s.release_height) | (speed > s.release_speed)
+        plant, release = _plant_or_release(height, speed, s.plant_height, s.plant_speed, s.release_height,
+                                           s.release_speed)
         return _hysteresis(plant, release, self._planted), lowest
 
     # -- output side --------------------------------------------------------------------
@@ -734,7 +734,8 @@ class FootLock:
         w = self.weights(t0, len(roots))
         self._forget_before(t0 - self.ramp)
         pushed = self._history.rows[t0 - self._base:t0 - self._base + len(roots)]
-        assert len(pushed) == len(roots), "output frames the lock has no input for"
+        if t0 < self._base or len(pushed) != len(roots):
+            raise IndexError("output frames the lock has no input for")
         return LockJob(self, t0, roots, np.asarray(inputs, dtype=np.float64), np.asarray(outputs, dtype=np.float64),
                        w, pushed[:, _FLOOR], mix, own=pushed[:, _FEET].reshape(len(roots), 2, 2, 3))
 
@@ -862,9 +863,14 @@ def _contacts_of_locks(locks: list[FootLock], ankles: np.ndarray, balls: np.ndar
     height = np.minimum(balls[:, :, 1] - lowest[:, None], ankles[:, :, 1] - lowest[:, None] - rest[:, None])
     speed = np.linalg.norm(feet - previous, axis=-1).min(axis=1)
     speed[~started] = np.inf  # a stream's first frame has no speed yet: not planted
-    plant = (height < thresholds[:, :1]) & (speed < thresholds[:, 1:2])
-    release = (height > thresholds[:, 2:3]) | (speed > thresholds[:, 3:4])
+    plant, release = _plant_or_release(height, speed, *thresholds.T[:, :, None])
     return np.where(plant, True, np.where(release, False, planted)), lowest
+
+
+def _plant_or_release(height, speed, plant_height, plant_speed, release_height, release_speed):
+    """The contact test's events per frame and foot: a foot low and still plants, one high
+    or fast lets go (``ContactSettings``; thresholds scalars or one per row)."""
+    return (height < plant_height) & (speed < plant_speed), (height > release_height) | (speed > release_speed)
 
 
 def plan_locks(items: list) -> list["LockJob"]:

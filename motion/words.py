@@ -333,37 +333,53 @@ def plan_frames(items: list[tuple[SeamBlender, int, np.ndarray, float, bool]]) -
     (numpy's per-call cost on (J, 3) arrays), 3 ms a tick at 64 performers here. A
     blender with no word to serve this frame, or with blending off, plans on its own."""
     planned: list = [None] * len(items)
-    moving = []  # (item index, blender, t, input, word, its frame index, word end)
+    served: list[_ServedFrame] = []
     for k, (blender, t, inputs, intensity, active) in enumerate(items):
         end = blender.serving_word(t)
         word = blender._words.get(end)
         if word is None or blender._omega == 0.0:
             planned[k] = blender.plan_block(t, inputs[None], intensity, active)
         else:
-            moving.append((k, blender, t, inputs, word, t - (end - blender.settings.word_length + 1), end))
-    if not moving:
+            index = t - (end - blender.settings.word_length + 1)
+            served.append(_ServedFrame(k, blender, inputs, intensity, active, word, index, end))
+    if not served:
         return planned
     # Switches of word: carry the new word onto what was shown a frame ago (``_plan_restyle``).
-    switching = [m for m in moving if m[6] != m[1]._serving and m[1]._shown is not None and m[5] > 0]
+    switching = [f for f in served if f.end != f.blender._serving and f.blender._shown is not None and f.index > 0]
     if switching:
-        before = np.stack([m[4][m[5] - 1] for m in switching])
-        offsets = rot.log_map(rot.multiply(_poses([m[1]._shown for m in switching]), rot.inverse(before)))
-        for m, offset in zip(switching, offsets):
-            m[1]._offset = offset
-    offset = np.stack([m[1]._offset for m in moving])
-    velocity = np.stack([m[1]._offset_velocity for m in moving])
-    omega = np.array([m[1]._omega for m in moving])[:, None, None]
+        before = np.stack([f.word[f.index - 1] for f in switching])
+        offsets = rot.log_map(rot.multiply(_poses([f.blender._shown for f in switching]), rot.inverse(before)))
+        for f, offset in zip(switching, offsets):
+            f.blender._offset = offset
+    offset = np.stack([f.blender._offset for f in served])
+    velocity = np.stack([f.blender._offset_velocity for f in served])
+    omega = np.array([f.blender._omega for f in served])[:, None, None]
     c2 = velocity + omega * offset
     after, after_velocity = _spring(offset, velocity, omega, 1)
-    for i, (k, blender, t, inputs, word, index, end) in enumerate(moving):
-        blender._serving = end
-        blender._offset, blender._offset_velocity = after[i], after_velocity[i]
-        blender._shown = blender._last_restyled = ("offset", after[i], word[index])
-        blender._last_input = inputs
-        _, _, intensity, active = items[k][1:]
-        planned[k] = [(0, 1, ("word", word[index:index + 1], offset[i], c2[i]), blender._plan_mix(1, active, intensity))]
-        blender._forget_before(end)
+    for i, f in enumerate(served):
+        b = f.blender
+        b._serving = f.end
+        b._offset, b._offset_velocity = after[i], after_velocity[i]
+        b._shown = b._last_restyled = ("offset", after[i], f.word[f.index])
+        b._last_input = f.inputs
+        restyle = ("word", f.word[f.index:f.index + 1], offset[i], c2[i])
+        planned[f.item] = [(0, 1, restyle, b._plan_mix(1, f.active, f.intensity))]
+        b._forget_before(f.end)
     return planned
+
+
+class _ServedFrame(NamedTuple):
+    """A frame ``plan_frames`` plans from a word: the item's place, its blender and input,
+    intensity and activity, and the word (ending at ``end``) with the frame's index in it."""
+
+    item: int
+    blender: SeamBlender
+    inputs: np.ndarray
+    intensity: float
+    active: bool
+    word: np.ndarray
+    index: int
+    end: int
 
 
 def planned_mix(runs: list, n: int) -> np.ndarray:
