@@ -894,9 +894,9 @@ def plan_locks(items: list) -> list["LockJob"]:
         lock._forget_before(t - r)
     weights = (windows * items[0][0]._blend[None, :, None]).max(axis=1) if items else windows[:, 0]
     own = pushed[:, _FEET].reshape(len(items), 2, 2, 3)
-    return [LockJob(lock, t, np.asarray(root, dtype=np.float64).reshape(1, 3), np.asarray(inputs, dtype=np.float64)[None],
-                    np.asarray(outputs, dtype=np.float64)[None], weights[k:k + 1], pushed[k:k + 1, _FLOOR], mix,
-                    own=own[k:k + 1])
+    return [LockJob(lock, t, np.asarray(root, dtype=np.float64).reshape(1, 3),
+                    np.asarray(inputs, dtype=np.float64)[None], np.asarray(outputs, dtype=np.float64)[None],
+                    weights[k:k + 1], pushed[k:k + 1, _FLOOR], mix, own=own[k:k + 1])
             for k, (lock, t, root, inputs, outputs, mix) in enumerate(items)]
 
 
