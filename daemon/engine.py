@@ -24,9 +24,9 @@ Per tick, in this order (the order is what makes fake-clock replays exact):
   1. apply queued control commands, swap in a newly loaded model;
   2. collect finished inference results (under a virtual clock: wait for all of them);
   3. poll every source and cut words; submit this tick's words as ONE batch;
-  4. render one frame per session (the seam blender's render, the correction low-pass and
-     the foot lock of all sessions in one vectorised pass each) and emit it to its sinks
-     (VMC, input VMC, recorder);
+  4. render one frame per session (the seam blender's plan and render, the correction
+     low-pass and the foot lock of all sessions in one vectorised pass each) and emit the
+     frames to their sinks (VMC, input VMC: the values of all in one pass; recorder);
   5. every ``status_interval`` seconds, log one status line per performer.
 """
 
@@ -48,7 +48,7 @@ from .config import FPS, DaemonConfig
 from .control import ControlServer
 from .inference import InferenceWorker
 from .latency import MAX_SLACK, calibrate, delay_line, lowered_line, slack_for
-from .output import PerformerSinks, open_outputs, recording_path
+from .output import PerformerSinks, emit_frames, open_outputs, recording_path
 from .restylers import load_restyler, model_name, style_label, style_mix, with_direction, with_style
 from .session import PendingFrame, Session, push_feet, settle_frames
 from .status import LatencyWindow, status_line, status_messages
@@ -354,13 +354,16 @@ class Daemon:
         # foot lock, each one vectorised pass for all.
         new = [(session, step) for session, step in zip(self.sessions, steps) if isinstance(step, PendingFrame)]
         settle_frames([session for session, _ in new], [step for _, step in new])
+        shown = []  # (session, its sinks, its frame) of every performer with a frame this tick
         for session, sinks, step in zip(self.sessions, self.sinks, steps):
             frame = session.finish_render(step) if isinstance(step, PendingFrame) else step
-            if frame is None:
-                continue
-            sinks.emit(frame, vmc_time)
+            if frame is not None:
+                shown.append((session, sinks, frame))
+        emit_frames([sinks for _, sinks, _ in shown], [frame for _, _, frame in shown], vmc_time)
+        sent = self.clock.now()
+        for session, _, frame in shown:
             if session.new_frame:
-                session.latency.add(self.clock.now() - frame.arrival)
+                session.latency.add(sent - frame.arrival)
         self.ticks += 1
         if not self.clock.virtual and self.ticks % PLAN_EVERY_TICKS == 0:
             self._plan_slack()

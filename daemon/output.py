@@ -51,6 +51,31 @@ def performer_targets(base: list[tuple[str, int]], k: int) -> list[tuple[str, in
     return out
 
 
+def emit_frames(performers: list["PerformerSinks"], frames: list, time: float) -> None:
+    """Each performer's frame to its sinks, restyled to ``outputs``, the input to ``inputs``,
+    then the recorder and the frame taps. Sinks of a kind that sends many frames in one call
+    (a ``send_many(rows, time)``, as ``VmcOut``'s: the VMC values of every frame in one pass)
+    get all of the tick's frames together; any other sink its own, one by one."""
+    by_kind: dict[type, list] = {}
+    for sinks, frame in zip(performers, frames):
+        for sink in sinks.outputs:
+            by_kind.setdefault(type(sink), []).append((sink, frame.root_position, frame.rotations, sinks.offsets))
+        for sink in sinks.inputs:
+            by_kind.setdefault(type(sink), []).append((sink, frame.input_root, frame.input_rotations, sinks.offsets))
+    for kind, rows in by_kind.items():
+        send_many = getattr(kind, "send_many", None)
+        if send_many is not None:
+            send_many(rows, time)
+        else:
+            for sink, *pose in rows:
+                sink.send(*pose, time)
+    for sinks, frame in zip(performers, frames):
+        if sinks.recorder is not None:
+            sinks.recorder.append(frame.root_position, frame.rotations)
+        for tap in sinks.frame_taps:
+            tap(frame)
+
+
 def recording_path(path: str | Path, k: int) -> Path:
     path = Path(path)
     if k == 0:
@@ -83,14 +108,7 @@ class PerformerSinks:
         self.offsets = np.asarray(offsets, np.float64)
 
     def emit(self, frame, time: float) -> None:
-        for sink in self.outputs:
-            sink.send(frame.root_position, frame.rotations, self.offsets, time)
-        for sink in self.inputs:
-            sink.send(frame.input_root, frame.input_rotations, self.offsets, time)
-        if self.recorder is not None:
-            self.recorder.append(frame.root_position, frame.rotations)
-        for tap in self.frame_taps:
-            tap(frame)
+        emit_frames([self], [frame], time)
 
     def close(self) -> None:
         for sink in (*self.outputs, *self.inputs, self.recorder):

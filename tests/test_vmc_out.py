@@ -134,6 +134,45 @@ def test_encoder_is_reusable_and_independent_of_input_arrays():
     assert enc.encode(*a) == first  # the template holds no state from earlier frames
 
 
+def test_many_performers_sent_in_one_call_send_the_bytes_each_sends_alone():
+    """The daemon sends every performer's frame of a tick in one call (``VmcOut.send_many``:
+    the values of all frames in one pass); each sink must send the bytes its own ``send``
+    sends (the fast path, itself held to python-osc's bytes above), with its own layout
+    (bundled or not, the root on the hips or at the origin), and a frame with a NaN is
+    refused for its sink alone."""
+    from stylecast.drivers.vmc.vmc_out import VmcOut
+
+    receivers = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(4)]
+    for r in receivers:
+        r.bind(("127.0.0.1", 0))
+    targets = [[("127.0.0.1", r.getsockname()[1])] for r in receivers]
+    frames = [random_frame(seed)[:3] for seed in range(4)]
+    bad = (frames[2][0], frames[2][1].copy(), frames[2][2])
+    bad[1][5, 1] = np.nan
+    frames[2] = bad
+    layouts = [dict(bundled=True), dict(bundled=False), dict(bundled=True), dict(bundled=True)]
+    together, alone = [[] for _ in receivers], [[] for _ in receivers]
+    sinks = [VmcOut(t, tap=got.append, **kw) for t, got, kw in zip(targets, together, layouts)]
+    single = [VmcOut(t, tap=got.append, **kw) for t, got, kw in zip(targets, alone, layouts)]
+    for out in (sinks[3], single[3]):
+        out.sender.encoder = FrameEncoder(bundled=True, root_mode="hips")
+    try:
+        VmcOut.send_many([(sink, *frame) for sink, frame in zip(sinks, frames)], 12.5)
+        for sink, frame in zip(single, frames):
+            sink.send(*frame, 12.5)
+        assert together == alone
+        assert [len(got) for got in together] == [1, 1, 0, 1]  # the NaN frame refused, the others sent
+        assert [s.sender.frames_rejected for s in sinks] == [0, 0, 1, 0]
+        assert together[3][0] == FrameEncoder(root_mode="hips").encode(*frames[3], 12.5)
+        assert together[1][0] == FrameEncoder(bundled=False).encode(*frames[1], 12.5)
+        assert receivers[0].recv(65536) == together[0][0][0]  # really on the wire
+    finally:
+        for out in (*sinks, *single):
+            out.close()
+        for r in receivers:
+            r.close()
+
+
 def test_trackers_are_encoded_and_bundled():
     from stylecast.drivers.vmc.vmc_in import TrackerSample
 

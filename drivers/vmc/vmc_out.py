@@ -113,8 +113,6 @@ class FrameEncoder:
         # into a big-endian float view, which byte-swaps element by element).
         self._words = np.frombuffer(self._template, dtype=np.uint32)
         self._slots = np.asarray(slots, dtype=np.intp)
-        self._values = np.empty(len(slots))
-        self._pose = self._values[:-1].reshape(1 + len(HUMANOID_BONES), 7)  # root row, bone rows
 
     @property
     def datagrams_per_frame(self) -> int:
@@ -124,24 +122,49 @@ class FrameEncoder:
                time: float) -> list[bytes]:
         """One frame (internal space: cm, xyzw) -> its datagrams. ValueError on non-finite
         or absurd input, which would otherwise reach every receiver as NaN."""
-        pose = self._pose
-        pose[1:, :3] = position_to_unity(bone_offsets)
-        pose[1:, 3:] = rotation_to_unity(rotations)
-        hips = position_to_unity(root_position)
-        if self.root_mode == "origin":
-            pose[0] = _IDENTITY_ROOT
-            pose[1, :3] = hips
-        else:
-            pose[0, :3] = hips
-            pose[0, 3:] = pose[1, 3:]
-            pose[1] = _IDENTITY_ROOT
-        self._values[-1] = time
-        # One dot product checks every value: NaN and inf propagate, huge values overflow.
-        if not float(self._values.dot(self._values)) < _LIMIT_SQ:
+        values = frame_values(np.asarray(root_position)[None], np.asarray(rotations)[None],
+                              np.asarray(bone_offsets)[None], time, self.root_mode)
+        if not sendable(values)[0]:
             raise ValueError("VMC frame has non-finite or out-of-range values; not sent")
-        self._words[self._slots] = self._values.astype(_BIG_F32).view(np.uint32)
+        return self.write(values.astype(_BIG_F32).view(np.uint32)[0])
+
+    def write(self, words: np.ndarray) -> list[bytes]:
+        """One frame's values as big-endian float32 bit patterns (``frame_values`` order,
+        viewed as uint32) -> its datagrams: the values scattered bit for bit into the
+        template (faster than a scatter into a big-endian float view, which byte-swaps
+        element by element), the datagrams sliced out."""
+        self._words[self._slots] = words
         mv = memoryview(self._template)
         return [bytes(mv[a:b]) for a, b in self._spans]
+
+
+def frame_values(roots: np.ndarray, rotations: np.ndarray, bone_offsets: np.ndarray, time: float,
+                 root_mode: str = "origin") -> np.ndarray:
+    """The float slots of frames (P,) in a ``FrameEncoder``'s value order, Unity space: the
+    root's pose, each bone's local position and rotation, then the time (P, 23 * 7 + 1).
+    Frames of many performers in one pass (the daemon's tick); see the module docstring
+    for the root and the Hips."""
+    p, joints = rotations.shape[:2]
+    values = np.empty((p, (1 + joints) * 7 + 1))
+    pose = values[:, :-1].reshape(p, 1 + joints, 7)  # root row, bone rows
+    pose[:, 1:, :3] = position_to_unity(bone_offsets)
+    pose[:, 1:, 3:] = rotation_to_unity(rotations)
+    hips = position_to_unity(roots)
+    if root_mode == "origin":
+        pose[:, 0] = _IDENTITY_ROOT
+        pose[:, 1, :3] = hips
+    else:
+        pose[:, 0, :3] = hips
+        pose[:, 0, 3:] = pose[:, 1, 3:]
+        pose[:, 1] = _IDENTITY_ROOT
+    values[:, -1] = time
+    return values
+
+
+def sendable(values: np.ndarray) -> np.ndarray:
+    """Which frames' values (P, S) may go out: one dot product per frame checks every
+    value (NaN and inf propagate, huge values overflow)."""
+    return np.einsum("ij,ij->i", values, values) < _LIMIT_SQ
 
 
 _default_encoders: dict[tuple, FrameEncoder] = {}
@@ -395,16 +418,32 @@ class VmcOut:
         self.tap = tap
 
     def send(self, root_position: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, time: float) -> None:
-        s = self.sender
-        try:
-            datagrams = s.encoder.encode(root_position, rotations, offsets, time)
-        except ValueError:
-            s.frames_rejected += 1  # non-finite pose: never put NaN on the wire
-            return
-        s.frames_sent += 1
-        if self.tap is not None:
-            self.tap(datagrams)
-        s.send_datagrams(datagrams)
+        VmcOut.send_many([(self, root_position, rotations, offsets)], time)
+
+    @staticmethod
+    def send_many(rows: list, time: float) -> None:
+        """Frames of many performers at one ``time``, (sink, root position, rotations,
+        offsets) each: the daemon's tick. The values of all frames of one root mode are
+        worked out and checked in one pass (per frame, numpy's per-call cost was most of
+        the encode); then each sink writes and sends its own."""
+        by_mode: dict[str, list] = {}
+        for row in rows:
+            by_mode.setdefault(row[0].sender.encoder.root_mode, []).append(row)
+        for root_mode, group in by_mode.items():
+            values = frame_values(np.array([r[1] for r in group], dtype=np.float64),
+                                  np.array([r[2] for r in group], dtype=np.float64),
+                                  np.array([r[3] for r in group], dtype=np.float64), time, root_mode)
+            words = values.astype(_BIG_F32).view(np.uint32)
+            for (sink, *_), fine, frame_words in zip(group, sendable(values).tolist(), words):
+                s = sink.sender
+                if not fine:
+                    s.frames_rejected += 1  # non-finite pose: never put NaN on the wire
+                    continue
+                datagrams = s.encoder.write(frame_words)
+                s.frames_sent += 1
+                if sink.tap is not None:
+                    sink.tap(datagrams)
+                s.send_datagrams(datagrams)
 
     def counters(self) -> dict:
         return self.sender.counters()
