@@ -289,7 +289,7 @@ class SeamBlender:
             self._serving = None
             self._shown = ("rotation", self._residual, last_input)
             return ("residual", self._residual)
-        index = t - (end - self.settings.word_length + 1)
+        index = self._frame_in_word(t, end)
         if self._omega == 0.0:
             self._offset = np.zeros_like(self._offset)
         elif end != self._serving and self._shown is not None and index > 0:
@@ -302,6 +302,10 @@ class SeamBlender:
         self._shown = ("offset", self._offset, word[index + n - 1])
         self._last_restyled, self._last_input = self._shown, last_input
         return ("word", word[index:index + n], offset, c2)
+
+    def _frame_in_word(self, t: int, end: int) -> int:
+        """Frame t's index in the word that ends at frame ``end``."""
+        return t - (end - self.settings.word_length + 1)
 
     def _plan_mix(self, n: int, available: bool, intensity: float):
         """Move ``mix`` towards its target by at most one crossfade step per frame:
@@ -340,7 +344,7 @@ def plan_frames(items: list[tuple[SeamBlender, int, np.ndarray, float, bool]]) -
         if word is None or blender._omega == 0.0:
             planned[k] = blender.plan_block(t, inputs[None], intensity, active)
         else:
-            index = t - (end - blender.settings.word_length + 1)
+            index = blender._frame_in_word(t, end)
             served.append(_ServedFrame(k, blender, inputs, intensity, active, word, index, end))
     if not served:
         return planned
