@@ -10,9 +10,9 @@ model, the device, the batch and the machine's load, so the daemon does not gues
   scheduled time the result was ready (model call, queueing and contention for the
   CPU together), and ``SlackPlanner`` raises the delay to the smallest safe one when the
   slowest of the recent jobs no longer fits, with ONE status line saying why;
-* and once the load that forced a raise has passed (the slowest recent job would
-  leave ``LOWER_SPARE`` frames unused, for ``LOWER_AFTER_CHECKS`` checks in a row) it
-  lowers the delay again, one frame every ``LOWER_EVERY_CHECKS`` checks while that
+* and once the load that forced a raise has passed (the slowest recent job would fit
+  one frame less with ``LOWER_MARGIN_FACTOR``'s headroom, for ``LOWER_AFTER_CHECKS``
+  checks in a row) it lowers the delay again, one frame every ``LOWER_EVERY_CHECKS`` checks while that
   lasts and never below the configured one, so a burst of load does not cost latency
   for the rest of the show. Each session works the frame off by skipping one input
   frame (counted, as for any lag; see daemon.session).
@@ -36,11 +36,16 @@ CALIBRATION_FACTOR = 2.0  # startup timing runs alone; live, the output loop com
 MIN_SAMPLES = 30  # jobs measured before the live estimate is trusted (a one-off stall is not a trend)
 WINDOW = 600  # jobs the live estimate looks back over (10 s at one job per tick)
 MAX_SLACK = 60  # ticks (1 s): past this the model is hopeless for live use; said so, not chased
-# Lowering is slow and asks for room to spare: a delay that goes down on a lull and up on
-# the next burst would cost a late word every time. Two frames spare means the lowered
-# delay still has one frame beyond what the slowest recent job (with its margin) needs.
-LOWER_SPARE = 2
-LOWER_AFTER_CHECKS = 30  # consecutive planner checks (one a second: 30 s) with that much to spare
+# Lowering is slow and asks for more headroom than staying does: a delay that went down on
+# a lull and up on the next burst would hitch the output each time. The lowered delay must
+# cover the slowest recent job with twice the raise's relative headroom (50 % against
+# 25 %), so between a raise (at the default's slack of 2 frames: a result later than
+# 25.1 ms) and a lowering back into it (every result within 20.9 ms) lies a 4 ms band.
+# Until 2026-11-27 it asked for two whole frames spare (results within 11.7 ms), which a
+# 16-performer soak never saw again after a one-off 25 ms result at minute 23: that raise
+# cost 17 ms of latency for the rest of the hour.
+LOWER_MARGIN_FACTOR = 2 * MARGIN_FACTOR - 1
+LOWER_AFTER_CHECKS = 30  # consecutive planner checks (one a second: 30 s) with that much headroom
 # Once calm is established, each further frame comes off after this many more calm checks:
 # at one frame per 30 s, a delay raised to 34 frames by a 400 ms stall in the soak would
 # take 13 minutes to come back. Each lowering costs one skipped input frame (the session's
@@ -93,28 +98,29 @@ class SlackPlanner:
 
     def __init__(self):
         self.ready_after: deque = deque(maxlen=WINDOW)  # seconds after the submitting tick
-        self.calm_checks = 0  # consecutive checks that found LOWER_SPARE frames unused
+        self.calm_checks = 0  # consecutive checks that found room to lower (``can_lower``)
 
     def add(self, seconds: float) -> None:
         self.ready_after.append(seconds)
 
-    def needed_slack(self) -> int | None:
-        """The smallest safe slack by the slowest recent job, or None while too few are
-        known. The slowest, not a percentile: every word on time means the tail too (a
-        95th percentile, the first choice, let 0.2 % of frames come late in a
-        16-performer soak while the delay never moved; the lowering undoes what a one-off
-        stall costs)."""
+    def needed_slack(self, factor: float = MARGIN_FACTOR) -> int | None:
+        """The smallest safe slack by the slowest recent job (with ``factor``'s headroom),
+        or None while too few are known. The slowest, not a percentile: every word on time
+        means the tail too (a 95th percentile, the first choice, let 0.2 % of frames come
+        late in a 16-performer soak while the delay never moved; the lowering undoes what a
+        one-off stall costs)."""
         if len(self.ready_after) < MIN_SAMPLES:
             return None
-        return slack_for(max(self.ready_after))
+        return slack_for(max(self.ready_after), factor)
 
     def can_lower(self, slack: int, floor: int) -> bool:
         """Called once per check: may the slack come down one frame (not below ``floor``)?
-        Only after ``LOWER_AFTER_CHECKS`` checks in a row found ``LOWER_SPARE`` frames
-        unused, then every ``LOWER_EVERY_CHECKS`` while that lasts; a busier check (or a
-        raise) starts the count again from zero."""
-        needed = self.needed_slack()
-        if needed is None or slack <= floor or needed > slack - LOWER_SPARE:
+        Only after ``LOWER_AFTER_CHECKS`` checks in a row found the slowest recent job
+        fitting one frame less with ``LOWER_MARGIN_FACTOR``'s headroom, then every
+        ``LOWER_EVERY_CHECKS`` while that lasts; a busier check (or a raise) starts the
+        count again from zero."""
+        needed = self.needed_slack(LOWER_MARGIN_FACTOR)
+        if needed is None or slack <= floor or needed > slack - 1:
             self.calm_checks = 0
             return False
         self.calm_checks += 1
