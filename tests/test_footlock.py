@@ -187,18 +187,24 @@ def test_streaming_a_frame_at_a_time_equals_the_whole_clip(paced):
     assert travelled < 0.9 * input_travel if paced else travelled == input_travel == 0.0
 
 
+OTHER_STANCE = replace(STANCE, stance_cap=3.0, stance_rate=0.03, turn_cap=10.0, turn_rate=0.1, turn_unsure=1.0,
+                       turn_sure=4.0)
+
+
 def test_performers_solved_in_one_call_equal_each_solved_alone():
     """The daemon solves every performer's frame of a tick in one vectorised call, each
     with its own proportions and lock; each must come out as it does alone (to rounding:
-    one lock alone takes its feet on Python floats). Four
-    performers: two body sizes, both locks, one gliding off (the floor step, not the lock)."""
+    one lock alone takes its feet on Python floats). Five
+    performers: three body sizes, both locks (two stances of different settings), one
+    gliding off (the floor step, not the lock) at a slower pace."""
     roots, q = stepping(200)
     glide = roots.copy()
     glide[100:, 2] = 5.0 * np.arange(100)
     performers = [(SK, ON_INPUT_ANKLES, roots, restyled(q)),
                   (SK.with_offsets(SK.offsets * 0.85), ON_INPUT_ANKLES, roots * [1, 0.85, 1], restyled(q, 20.0)),
                   (SK.with_offsets(SK.offsets * 1.1), STANCE, roots * [1, 1.1, 1], restyled(q)),
-                  (SK, replace(ON_INPUT_ANKLES, pace=((2.0, 1.5),)), glide, crouched(q))]  # and a pace
+                  (SK, replace(ON_INPUT_ANKLES, pace=((2.0, 1.5),)), glide, crouched(q)),  # and a pace
+                  (SK, OTHER_STANCE, roots, restyled(q, 20.0))]  # a stance of other settings beside the first
     together = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     alone = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     lifted = locked = 0
@@ -209,15 +215,19 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
         k = t - 4
         if k < 0:
             continue
-        jobs = [lock.plan(k, r[k:k + 1], q[k:k + 1], out[k:k + 1]) for lock, (_, _, r, out) in zip(together, performers)]
+        mix = np.array([min(1.0, k / 60.0)])  # the restyle fading in (what the pace is scaled by)
+        jobs = [lock.plan(k, r[k:k + 1], q[k:k + 1], out[k:k + 1], mix) for lock, (_, _, r, out) in
+                zip(together, performers)]
         solve_lock_jobs(jobs)
         for job, lock, (_, _, r, out) in zip(jobs, alone, performers):
-            new_roots, rotations = lock.apply(k, r[k:k + 1], q[k:k + 1], out[k:k + 1])
+            new_roots, rotations = lock.apply(k, r[k:k + 1], q[k:k + 1], out[k:k + 1], mix)
             np.testing.assert_allclose(job.new_roots, new_roots, rtol=0, atol=1e-9)
             np.testing.assert_allclose(job.result, rotations, rtol=0, atol=1e-12)
         locked += sum(job.weights.any() for job in jobs)
         lifted += not np.array_equal(jobs[3].result, jobs[3].outputs) and not jobs[3].weights.any()
     assert locked > 300 and lifted > 10  # both the lock and the floor step were exercised
+    assert np.ptp([lock.pace._shift[1] for lock in together]) > 10.0  # the pace held one body back
+    assert [lock.locked_frames for lock in together] == [lock.locked_frames for lock in alone]
 
 
 def test_nothing_changes_where_no_foot_is_planted_or_near_the_floor():
