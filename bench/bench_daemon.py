@@ -6,6 +6,7 @@
     python bench/bench_daemon.py capacity 5     # capacity only, 5 s per run
     python bench/bench_daemon.py capacity-workers 5  # the same over one process per core (serve --workers)
     python bench/bench_daemon.py capacity-workers 5 --workers 4  # over 4 processes
+    python bench/bench_daemon.py capacity-workers 8 --model multistyle  # another model (serve --model)
     python bench/bench_daemon.py capacity-workers 5 --device cuda --sizes 64,256,1024 --no-baseline
                                         # serve --device cuda; rerun with --device cpu for its baseline
 
@@ -63,9 +64,16 @@ from stylecast.motion.words import DEFAULT_HOP  # noqa: E402 (serve's default ho
 
 # ----------------------------------------------------------------------------- helpers
 
-def restyler(device="cpu"):
+def restyler(device="cpu", name=None):
+    """The shipped default model, or the model ``name`` (``--model``: a shipped name or a
+    path, as ``serve --model`` takes it)."""
     from stylecast.daemon.restylers import StandInRestyler
 
+    if name:
+        from stylecast.models.restyler import Restyler
+
+        model = Restyler.load(name, device=device)
+        return model, f"{model.name} on {model.device}"
     if CHECKPOINT.exists():
         from stylecast.models.restyler import Restyler
 
@@ -298,13 +306,14 @@ class PreviousModelCall:
         return getattr(self._restyler, name)
 
 
-def _capacity_in_process(n, port, seconds, hop, latency, previous, worker, device, start, conn):
+def _capacity_in_process(n, port, seconds, hop, latency, previous, worker, device, model_name, start, conn):
     """One worker of a ``--workers`` capacity run: a whole daemon over its slice, started
     with the others (``start``: a barrier passed once every worker has its model), its
     clock offset as ``serve`` offsets it (``worker``: index, count). ``previous``: the
     previous release's model call (``PreviousModelCall``), every clock started at once.
-    ``device``: where this worker's model runs (``serve --device``)."""
-    model, _ = restyler(device)
+    ``device``: where this worker's model runs (``serve --device``); ``model_name``: which
+    model (None: the shipped default)."""
+    model, _ = restyler(device, model_name)
     if previous:
         from stylecast.daemon import engine
 
@@ -318,7 +327,7 @@ def _capacity_in_process(n, port, seconds, hop, latency, previous, worker, devic
     conn.close()
 
 
-def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous=False, device="cpu"):
+def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous=False, device="cpu", model_name=None):
     """``run_capacity`` as ``serve --workers N`` runs it: each process a whole daemon over a
     contiguous slice of the performers (daemon/workers.py), all at once; figures combined."""
     from stylecast.daemon.workers import split
@@ -326,7 +335,8 @@ def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous
     slices = split(n, workers)
     port = free_ports(n)  # performer k to port + k, whichever worker serves it
     parts = run_together(_capacity_in_process,
-                         [(len(r), port + r.start, seconds, hop, latency, previous, (w, len(slices)), device)
+                         [(len(r), port + r.start, seconds, hop, latency, previous, (w, len(slices)), device,
+                           model_name)
                           for w, r in enumerate(slices)])
     total = {key: sum(p[key] for p in parts) for key in ("dropped", "late", "cpu", "received", "sent")}
     worst = {key: max(p[key] for p in parts) for key in ("delay", "p99", "tick99", "wall", "calls")}
@@ -334,7 +344,7 @@ def run_capacity_workers(n, workers, seconds, hop=0, latency="default", previous
 
 
 def bench_capacity(model, motion, seconds=8.0, workers=1, sizes=(4, 8, 16, 24, 32, 40, 48, 64), device="cpu",
-                   baseline=True, rounds=1):
+                   baseline=True, rounds=1, model_name=None):
     """Before issue 12 (hop 15, delay 15, no slack planning: the criterion was zero dropped
     ticks, late words were faded) against the default preset (zero dropped ticks AND
     zero late words; the delay may grow, shown). ``workers`` > 1: the default preset only,
@@ -343,7 +353,8 @@ def bench_capacity(model, motion, seconds=8.0, workers=1, sizes=(4, 8, 16, 24, 3
     the first that fails. ``baseline`` False: the previous releases' run is skipped.
     ``rounds``: runs of each size; a size holds only if every run holds (one run of a
     size on a shared 2-core machine passed or failed by the minute), the table shows
-    how many did and the worst run's figures."""
+    how many did and the worst run's figures. ``model_name``: the workers' model (None:
+    the shipped default), ``model`` the same loaded here."""
     runs = (("before issue 12: hop 15, delay 15", 15, "relaxed", True, False),
             ("--latency default", 0, "default", False, True))
     if workers > 1:  # legacy here: the previous release's model call (PreviousModelCall)
@@ -360,7 +371,7 @@ def bench_capacity(model, motion, seconds=8.0, workers=1, sizes=(4, 8, 16, 24, 3
             for _ in range(rounds):
                 if workers > 1:
                     results.append(run_capacity_workers(n, workers, seconds, hop=hop, latency=latency,
-                                                        previous=legacy, device=device))
+                                                        previous=legacy, device=device, model_name=model_name))
                 else:
                     results.append(run_capacity(n, model, motion, seconds, hop=hop, latency=latency, legacy=legacy))
             held = sum(x["dropped"] == 0 and (x["late"] == 0 or not strict) for x in results)
@@ -623,6 +634,7 @@ def main(argv):
     rounds = int(option(argv, "--rounds", 1))  # capacity runs: runs of each size, all must hold
     workers = int(option(argv, "--workers", 0)) or os.cpu_count() or 2  # capacity-workers: serve --workers
     sizes = tuple(int(k) for k in sizes.split(",")) if sizes else (4, 8, 16, 24, 32, 40, 48, 64)
+    model_name = option(argv, "--model", None)  # serve --model: a shipped name or a path (default: the shipped one)
     baseline = "--no-baseline" not in argv  # capacity runs: also the previous releases' settings
     argv = [a for a in argv if a != "--no-baseline"]
     from stylecast.models.device import pick_device
@@ -638,7 +650,7 @@ def main(argv):
     import scipy
 
     print("machine: " + describe(f"scipy {scipy.__version__}"))
-    model, label = restyler(device)
+    model, label = restyler(device, model_name)
     print(f"restyler: {label}")
     motion = base_motion()
     if "latency" in which:
@@ -649,7 +661,7 @@ def main(argv):
         bench_capacity(model, motion, numbers[0] if numbers else 8.0, sizes=sizes, baseline=baseline, rounds=rounds)
     if "capacity-workers" in which:
         bench_capacity(model, motion, numbers[0] if numbers else 8.0, workers=workers, sizes=sizes,
-                       device=device, baseline=baseline, rounds=rounds)
+                       device=device, baseline=baseline, rounds=rounds, model_name=model_name)
     if "cpu" in which:
         bench_cpu(model, motion)
     if "presets" in which:
