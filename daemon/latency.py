@@ -12,10 +12,10 @@ model, the device, the batch and the machine's load, so the daemon does not gues
   slowest of the recent jobs no longer fits, with ONE status line saying why;
 * and once the load that forced a raise has passed (the slowest recent job would fit
   one frame less with ``LOWER_MARGIN_FACTOR``'s headroom, for ``LOWER_AFTER_CHECKS``
-  checks in a row) it lowers the delay again, one frame every ``LOWER_EVERY_CHECKS`` checks while that
-  lasts and never below the configured one, so a burst of load does not cost latency
-  for the rest of the show. Each session works the frame off by skipping one input
-  frame (counted, as for any lag; see daemon.session).
+  checks in a row) it lowers the delay again, one frame every ``LOWER_EVERY_CHECKS``
+  checks while that lasts and never below the configured one, so a burst of load does
+  not cost latency for the rest of the show. Each session works the frame off by
+  skipping one input frame (counted, as for any lag; see daemon.session).
 
 Words that were late before a raise stay counted.
 """

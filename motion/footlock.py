@@ -1052,16 +1052,16 @@ def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray, plant
     gaps, down = np.where(planted, gap, 0.0).tolist(), planted.tolist()
     xz, weights = rows.roots[:, [0, 2]].tolist(), rows.weights.tolist()
     shown = [1.0 if job.mix is None else float(job.mix[0]) for job in jobs]
-    stances = [i for i, job in enumerate(jobs) if job.lock.stance.cap > 0]  # --feet stance
-    if stances:
-        locks = [jobs[i].lock.stance for i in stances]
-        per_row = np.array([[s.cap, s.turn_cap, s.turn_unsure, s.turn_sure] for s in locks])
-        wanted, sure = stance_targets((rows.own[0][stances], rows.own[1][stances]),
-                                      (restyled[0][stances], restyled[1][stances]), per_row[:, 0, None, None],
-                                      per_row[:, 1, None, None], per_row[:, 2, None], per_row[:, 3, None])
+    at = [i for i, job in enumerate(jobs) if job.lock.stance.cap > 0]  # the rows with a stance (--feet stance)
+    if at:
+        stances = [jobs[i].lock.stance for i in at]
+        per_row = np.array([[s.cap, s.turn_cap, s.turn_unsure, s.turn_sure] for s in stances])
+        wanted, sure = stance_targets((rows.own[0][at], rows.own[1][at]), (restyled[0][at], restyled[1][at]),
+                                      per_row[:, 0, None, None], per_row[:, 1, None, None], per_row[:, 2, None],
+                                      per_row[:, 3, None])
         wanted, sure = wanted.tolist(), sure.tolist()
-        rows.stance[stances] = [stance.follow(jobs[i].t0, [wanted[k]], [down[i]], [sure[k]])[0]
-                                for k, (i, stance) in enumerate(zip(stances, locks))]
+        rows.stance[at] = [stance.follow(jobs[i].t0, [wanted[k]], [down[i]], [sure[k]])[0]
+                           for k, (i, stance) in enumerate(zip(at, stances))]
     drops, paced, body, feet = [], [], [], []
     for i, job in enumerate(jobs):
         lock = job.lock
