@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from stylecast.motion.errors import UserError
@@ -47,6 +48,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        # Whoever read the output has gone (`stylecast info F.bvh | head -3`): stop quietly,
+        # as Unix tools do, rather than with a traceback (and another when Python flushes
+        # stdout on exit, hence stdout pointed at /dev/null first).
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + 13  # what a shell reports for a tool stopped by SIGPIPE (13)
 
 
 if __name__ == "__main__":

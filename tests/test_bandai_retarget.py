@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -113,6 +115,20 @@ def test_restyled_humanoid_goes_back_onto_the_source_rig(bandai_root):
     b, _ = forward_kinematics(back)
     assert np.abs(a - b).max() < 1e-6
     assert back.skeleton.names == clip.skeleton.names
+
+
+def test_info_into_a_pipe_nobody_reads_stops_quietly():
+    # `stylecast info F | head -3` once ended in a BrokenPipeError traceback. A pipe whose
+    # reading end is closed before the command starts fails its first write, every time.
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        clip = Path(__file__).resolve().parents[1] / "daemon" / "clips" / "walk_normal.bvh.gz"
+        done = subprocess.run([sys.executable, "-m", "stylecast", "info", str(clip)], stdout=write_end,
+                              stderr=subprocess.PIPE, text=True)
+    finally:
+        os.close(write_end)
+    assert done.returncode == 141 and done.stderr == "", done.stderr
 
 
 @pytest.mark.parametrize("bad", ["missing.bvh"])
