@@ -283,6 +283,10 @@ def run_train(args) -> int:
                       action_view=args.action_view, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
+    from .styles import check_style
+
+    for name in (args.style_a, args.style_b):
+        check_style(name)  # before minutes of data loading
     if args.style_a == args.style_b:
         raise UserError(f"--style-a and --style-b are both {args.style_a!r}; choose two different styles")
     _non_negative(lambda_gram=args.lambda_gram, lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,

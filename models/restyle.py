@@ -153,13 +153,14 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
     from stylecast.motion.bvh import read_bvh, write_bvh
     from stylecast.motion.footlock import check_feet, check_pace, feet_for
     from stylecast.motion.humanoid import load_user_map
+    from stylecast.motion.resample import check_frame_rate
 
     from .restyler import Restyler
 
     from .styles import parse_mix
 
-    if fps is not None and not fps > 0:
-        raise UserError(f"--fps must be positive, got {fps:g}")
+    if fps is not None:
+        check_frame_rate(fps)
     check_feet(feet)
     check_pace(pace)
     if style is not None:

@@ -10,6 +10,19 @@ import numpy as np
 
 from . import rotations as rot
 from .clip import Clip
+from .errors import UserError
+
+# The highest frame rate a file is resampled to: mocap systems record at up to a few
+# hundred frames per second; past this a typo (1e9) asked numpy for 68 GB.
+MAX_FILE_FPS = 1000.0
+
+
+def check_frame_rate(fps: float, option: str = "--fps") -> float:
+    """``fps`` as given to ``option``, or one sentence saying what is wrong with it."""
+    if not (0 < fps <= MAX_FILE_FPS):  # NaN fails it too
+        raise UserError(f"{option} must be a frame rate above 0 and at most {MAX_FILE_FPS:g} frames per second, "
+                        f"got {fps:g}")
+    return float(fps)
 
 
 def resample(clip: Clip, fps: float) -> Clip:

@@ -131,6 +131,24 @@ def test_info_into_a_pipe_nobody_reads_stops_quietly():
     assert done.returncode == 141 and done.stderr == "", done.stderr
 
 
+@pytest.mark.parametrize("fps", ["0", "-5", "nan", "inf", "1e9"])
+@pytest.mark.parametrize("command", ["convert", "restyle"])
+def test_a_frame_rate_out_of_range_is_one_sentence(tmp_path, capsys, command, fps):
+    # --fps 0 once left the clip as it was without a word, -5 and inf ended in tracebacks,
+    # 1e9 asked numpy for 68 GB.
+    from stylecast.cli import main
+
+    clip = Path(__file__).resolve().parents[1] / "daemon" / "clips" / "walk_normal.bvh.gz"
+    argv = [command, str(clip), "-o", str(tmp_path / "out.bvh"), "--fps", fps]
+    try:
+        status = main(argv)
+    except SystemExit as stop:  # argparse's own refusal
+        status = stop.code
+    err = capsys.readouterr().err
+    assert status == 2 and "must be a frame rate above 0 and at most 1000 frames per second" in err, err
+    assert "Traceback" not in err and not (tmp_path / "out.bvh").exists()
+
+
 @pytest.mark.parametrize("bad", ["missing.bvh"])
 def test_info_on_a_missing_file_is_one_sentence(tmp_path, bad):
     done = subprocess.run([sys.executable, "-m", "stylecast", "info", str(tmp_path / bad)], capture_output=True, text=True)

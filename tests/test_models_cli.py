@@ -40,9 +40,12 @@ def test_train_cli_writes_a_model_and_one_csv_row(tiny_run):
     assert (tiny_run / "model.safetensors").stat().st_size < 5_000_000
 
 
-@needs_data
-def test_train_cli_rejects_an_unknown_style(tmp_path, capsys):
-    assert main(["train", "--style-b", "sleepy", "--max-words", "4", "--out", str(tmp_path), "--no-progress"]) == 2
+def test_train_cli_rejects_an_unknown_style_before_reading_any_data(tmp_path, capsys):
+    # An empty data folder: the name is refused before the minutes of loading, or the
+    # complaint would be about the data.
+    (tmp_path / "empty").mkdir()
+    assert main(["train", "--style-b", "sleepy", "--data", str(tmp_path / "empty"), "--out", str(tmp_path / "run"),
+                 "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "unknown style 'sleepy'" in err and "exhausted" in err and "Traceback" not in err
 
