@@ -95,7 +95,7 @@ def open_viewer(input_port: int | None) -> subprocess.Popen | None:
 def run_demo(args, config: DaemonConfig) -> int:
     from stylecast.drivers.bvh.bvh_replay import ReplaySource, humanoid_motion
     from stylecast.drivers.urls import parse_url
-    from stylecast.motion.bvh import read_bvh
+    from stylecast.motion.bvh import read_bvh, require_frames
 
     from .runner import run_daemon
 
@@ -106,8 +106,8 @@ def run_demo(args, config: DaemonConfig) -> int:
         config.out_input = [f"vmc://127.0.0.1:{DEFAULT_INPUT_PORT}"]
     model = config.model or DEFAULT_MODEL
     restyler = demo_restyler(model, config.device)
-    source = ReplaySource(humanoid_motion(read_bvh(clip_path)), clip_path.name.split(".")[0],
-                          loop=True, speed=args.speed)
+    clip = require_frames(read_bvh(clip_path), str(clip_path))
+    source = ReplaySource(humanoid_motion(clip), clip_path.name.split(".")[0], loop=True, speed=args.speed)
     print(f"stylecast demo: replaying {clip_path} (looping) -> {', '.join(config.out)}; "
           f"Ctrl-C to stop", file=sys.stderr)
     input_port = parse_url(config.out_input[0]).port if config.out_input else None

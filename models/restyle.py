@@ -150,7 +150,7 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
     anything is read; a pair model takes one of its two styles (the direction follows).
     ``feet``: where planted feet go (``motion.footlock.FEET``); ``pace``: whose pace the
     output covers ground at (``motion.footlock.PACE_CHOICES``)."""
-    from stylecast.motion.bvh import read_bvh, write_bvh
+    from stylecast.motion.bvh import read_bvh, require_frames, write_bvh
     from stylecast.motion.footlock import check_feet, check_pace, feet_for
     from stylecast.motion.humanoid import load_user_map
     from stylecast.motion.resample import check_frame_rate
@@ -169,7 +169,7 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
     if style is not None:
         restyler = restyler.with_style(style)
     user_map = load_user_map(map_file) if map_file else None
-    clip = read_bvh(Path(input_path))
+    clip = require_frames(read_bvh(Path(input_path)), str(input_path))
     out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live, feet_for(feet, restyler, pace))
     write_bvh(out, Path(output_path))
     return {"joints": len(out.skeleton), "frames": out.num_frames, "fps": out.fps, "model": restyler.name,

@@ -72,6 +72,14 @@ def read_bvh(path: str | Path) -> Clip:
     return _parse_bytes(_read_text_bytes(path), str(path))
 
 
+def require_frames(clip: Clip, what: str) -> Clip:
+    """``clip``, or one sentence when it has no frame to play, restyle or emulate (a BVH
+    with ``Frames: 0`` is valid; every command that moves it needs one)."""
+    if clip.num_frames < 1:
+        raise UserError(f"{what} has no frames (its MOTION section is empty); export it again with its motion")
+    return clip
+
+
 def parse_bvh(text: str | bytes, source_name: str = "<bvh>") -> Clip:
     """Parse BVH text; ``source_name`` names it in error messages."""
     data = text.encode("utf-8") if isinstance(text, str) else text

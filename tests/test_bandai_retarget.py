@@ -149,6 +149,26 @@ def test_a_frame_rate_out_of_range_is_one_sentence(tmp_path, capsys, command, fp
     assert "Traceback" not in err and not (tmp_path / "out.bvh").exists()
 
 
+@pytest.mark.parametrize("command", [["restyle", "{clip}", "-o", "{out}"],
+                                     ["restyle", "{clip}", "-o", "{out}", "--live"],
+                                     ["emulate", "--bvh", "{clip}", "--to", "vmc://127.0.0.1:9"],
+                                     ["serve", "--source", "bvh://{clip}", "--out", "vmc://127.0.0.1:9"],
+                                     ["demo", "{clip}", "--no-view", "--duration", "1"]])
+def test_a_bvh_with_no_frames_is_one_sentence_wherever_it_is_played(tmp_path, capsys, command):
+    # A valid file (Frames: 0) that `restyle` and `emulate` once ended in tracebacks on.
+    import gzip
+
+    demo = gzip.open(Path(__file__).resolve().parents[1] / "daemon" / "clips" / "walk_normal.bvh.gz", "rt").read()
+    clip = tmp_path / "empty.bvh"
+    clip.write_text(demo.split("MOTION")[0] + "MOTION\nFrames: 0\nFrame Time: 0.0333333\n")
+    from stylecast.cli import main
+
+    status = main([a.format(clip=clip, out=tmp_path / "out.bvh") for a in command])
+    err = capsys.readouterr().err
+    assert status == 2 and "has no frames (its MOTION section is empty); export it again" in err, err
+    assert "Traceback" not in err and not (tmp_path / "out.bvh").exists()
+
+
 @pytest.mark.parametrize("bad", ["missing.bvh"])
 def test_info_on_a_missing_file_is_one_sentence(tmp_path, bad):
     done = subprocess.run([sys.executable, "-m", "stylecast", "info", str(tmp_path / bad)], capture_output=True, text=True)

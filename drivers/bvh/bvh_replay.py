@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from stylecast.motion.bvh import require_frames
 from stylecast.motion.clip import Clip, PoseFrame
 from stylecast.motion.errors import UserError
 
@@ -38,8 +39,7 @@ class ReplaySource(Source):
     def __init__(self, motion: Clip, performer: str, loop: bool = False, speed: float = 1.0):
         if not 0.05 <= speed <= 20.0:
             raise UserError(f"replay speed {speed} is out of range; use a value between 0.05 and 20")
-        if motion.num_frames < 1:
-            raise UserError(f"clip for performer {performer!r} has no frames")
+        require_frames(motion, f"the clip for performer {performer!r}")
         self.performer = performer
         self.skeleton = motion.skeleton
         self.rotations = np.ascontiguousarray(motion.rotations, dtype=np.float64)
@@ -94,7 +94,7 @@ def open_source(url: EndpointUrl, performer: str) -> ReplaySource:
         raise UserError(f"{url.text}: give a file, as in bvh:///path/clip.bvh")
     from stylecast.motion.bvh import read_bvh
 
-    clip = read_bvh(url.path)
+    clip = require_frames(read_bvh(url.path), url.path)  # before the retargeting reads its motion
     user_map = None
     if opts["map"]:
         from stylecast.motion.humanoid import load_user_map

@@ -68,10 +68,10 @@ class TrackerRecording:
 
 def load_humanoid(path: str | Path) -> Clip:
     """A BVH (or .bvh.gz) file as humanoid motion."""
-    from stylecast.motion.bvh import read_bvh
+    from stylecast.motion.bvh import read_bvh, require_frames
     from stylecast.motion.humanoid import Retarget
 
-    clip = read_bvh(path)
+    clip = require_frames(read_bvh(path), str(path))
     if tuple(clip.skeleton.names) == HUMANOID_BONES:
         return clip
     return Retarget.for_clip(clip).to_humanoid(clip)
