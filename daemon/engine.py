@@ -49,7 +49,7 @@ from .control import ControlServer
 from .inference import InferenceWorker
 from .latency import MAX_SLACK, calibrate, delay_line, lowered_line, slack_for
 from .output import PerformerSinks, emit_frames, open_outputs, recording_path
-from .restylers import load_restyler, model_name, style_label, style_mix, with_direction, with_style
+from .restylers import load_restyler, model_name, style_label, style_mix, warm_up, with_direction, with_style
 from .session import PendingFrame, Session, push_feet, settle_frames
 from .status import LatencyWindow, status_line, status_messages
 
@@ -250,6 +250,7 @@ class Daemon:
 
         batch = self.words_per_tick()
         try:
+            warm_up(self.worker.restyler)  # every direction it may switch to live, not only this one
             seconds = calibrate(self.worker.restyler, batch, len(HUMANOID_BONES), repeats=2)
         except Exception as exc:  # a broken model is the worker's to count, not a startup crash
             log.warning("model timing before start failed (%s); keeping delay %d", exc, self.settings.delay)
@@ -472,6 +473,7 @@ class Daemon:
         while name is not None:
             try:
                 model = self.model_loader(name)
+                warm_up(model)  # here, not in its first live call (``Restyler.warm_up``)
             except Exception as exc:  # a bad name or checkpoint must not stop the show
                 self._control_error(f"model {name!r} not loaded: {exc}")
             else:

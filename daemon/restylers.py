@@ -68,6 +68,14 @@ def load_restyler(name: str, device: str = "cpu"):
     return restyler_cls.load(name, device=device)
 
 
+def warm_up(restyler) -> None:
+    """Whatever a model needs run once before it goes live (``Restyler.warm_up``: each of
+    its generators' graphs traced); stand-ins need nothing."""
+    warm = getattr(restyler, "warm_up", None)
+    if callable(warm):
+        warm()
+
+
 def model_name(restyler) -> str:
     return str(getattr(restyler, "name", None) or type(restyler).__name__)
 

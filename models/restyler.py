@@ -201,6 +201,16 @@ class Restyler:
             out = pipeline.restyle(network, self.torch_representation, w.contiguous(), conditioning)
         return out if is_tensor else out.cpu().numpy()
 
+    def warm_up(self) -> None:
+        """Each generator this model can run live (both directions) called once on one
+        identity word, off the clock. A generator's first call traces its graph
+        (``pipeline``): 130-160 ms alone here, 250 ms inside a loaded daemon, where a model
+        swapped in live once paid it on the clock (its first words late, and the planner
+        raised the delay to 23 frames for the minutes it took to come back down); a
+        direction changed live paid it too."""
+        for direction in ("a2b", "b2a"):
+            self.restyle_words(_identity_words(), direction)
+
     def restyle_words_eager(self, words: np.ndarray, *args) -> np.ndarray:
         """``restyle_words`` on numpy words with its operations run one by one instead of as
         the traced graph (``pipeline.restyle_eager``); ``args`` as ``restyle_words``'s."""
@@ -325,6 +335,13 @@ def build_checked(path, tensors, rep, cfg, make, prefixes: tuple[str, ...]):
     model = make()
     model.load_state_dict(state, strict=False)  # discriminators are optional in a checkpoint
     return model
+
+
+def _identity_words(batch: int = 1) -> np.ndarray:
+    """``batch`` words of the rest pose (every rotation the identity)."""
+    words = np.zeros((batch, WORD_LENGTH, len(HUMANOID_BONES), 4))
+    words[..., 3] = 1.0
+    return words
 
 
 def _check_words_shape(shape: tuple) -> None:

@@ -18,7 +18,7 @@ import numpy as np
 
 from stylecast.motion.errors import UserError
 
-from .restyler import Restyler, build_checked, network_config, register_kind
+from .restyler import Restyler, _identity_words, build_checked, network_config, register_kind
 from .styles import NEUTRAL, STYLES, describe_mix, one_hot, parse_mix
 
 KIND = "multistyle"
@@ -129,6 +129,10 @@ class MultiStyleRestyler(Restyler):
 
     def for_target(self, style: str) -> "MultiStyleRestyler":
         return self.with_mix(one_hot(style, self.style_names))
+
+    def warm_up(self) -> None:
+        """``Restyler.warm_up``: its one generator."""
+        self.restyle_words(_identity_words())
 
     def with_direction(self, direction: str):
         raise UserError(f"model {self.name} has no directions; choose its style instead (--style NAME, "

@@ -230,3 +230,31 @@ def test_after_a_slow_spell_the_delay_comes_back_down_to_the_presets_without_lat
     assert len(lowered) == top - 5 and "delay lowered from" in lowered[0] and "frame skipped" in lowered[0]
     assert s.skipped >= len(lowered)
     assert s.blender.late_frames == late[delays.index(top)], (late, delays)  # lowering made none late
+
+
+@pytest.mark.parametrize("name", ["normal2exhausted", "multistyle"])
+def test_every_generator_a_model_can_run_live_is_traced_before_it_goes_live(name):
+    # A generator's first call traces its graph (130-160 ms alone, 250 ms in a loaded
+    # daemon): a model swapped in live once paid it on the clock, its first words late
+    # and the delay raised to 23 frames. Both at the start and in the background loader,
+    # every direction it may switch to is run once before the clock or the swap.
+    from stylecast.daemon.restylers import load_restyler
+    from stylecast.models import pipeline
+
+    def generators(model):  # the modules its calls run (pipeline's key)
+        if name == "normal2exhausted":
+            return [model._network(1, direction)[0] for direction in ("a2b", "b2a")]
+        return [model._network(1)[0]]
+
+    cfg = DaemonConfig(control="off", status_interval=3600.0)
+    started = load_restyler(name)
+    daemon = Daemon(cfg, [ReplaySource(walk_clip(120), "p0")], started, RealClock(), log_status=False)
+    try:
+        daemon._calibrate()  # what run() does before the clock starts
+        assert all(g in pipeline._traced for g in generators(started))
+        daemon._load_models(name)  # the background loader's work, here in this thread
+        swapped = daemon._pending_model
+        assert swapped is not None and swapped is not started
+        assert all(g in pipeline._traced for g in generators(swapped))
+    finally:
+        daemon.close()
