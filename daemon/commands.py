@@ -7,16 +7,18 @@ daemon (``apply``, run by the output loop at the start of a tick), so the parser
 daemon can never disagree about which commands exist or what their values mean. The
 README's table of addresses is this table.
 
-    /stylecast/intensity  f value [s performer]   0..1, slerp input -> restyled
-    /stylecast/bypass     i 0|1   [s performer]   (f, T and F accepted too)
-    /stylecast/crossfade  f seconds               length of every fade from the next one on
-    /stylecast/direction  s name                  e.g. "a2b" / "b2a" for the loaded model
-    /stylecast/model      s name-or-path          loaded in the background, then swapped
-    /stylecast/style      s name [f weight] [s performer]   a style of a multi-style model;
-                                              weight < 1 leaves the rest to normal
-    /stylecast/mix        s name f w [s name f w ...] [s performer]   a weighted style mix
-    /stylecast/calibrate  [s performer]           tracker sources: calibrate on the next frames
-    /stylecast/status                             replied to the sender (see status.py)
+    /stylecast/intensity  0..1, slerp input -> restyled
+    /stylecast/bypass     pass the input through (1) or restyle (0)
+    /stylecast/crossfade  length of every fade from the next one on
+    /stylecast/direction  e.g. "a2b" / "b2a" for the loaded model
+    /stylecast/model      loaded in the background, then swapped
+    /stylecast/style      a style of a multi-style model; weight < 1 leaves the rest to normal
+    /stylecast/mix        a weighted style mix
+    /stylecast/calibrate  tracker sources: calibrate on the next frames
+    /stylecast/status     replied to the sender (see status.py)
+
+Each row's ``usage`` says its arguments; a command with wrong ones is refused with that
+sentence, logged once per address (then counted), as ``usage_line`` words it.
 
 Values a hostile or broken sender could use to do harm are refused here, not clamped
 later: non-finite numbers, crossfades beyond a minute, strings beyond 512 bytes.
@@ -44,6 +46,7 @@ class Command:
     parse: Callable[[tuple], Any]  # arguments -> value, or None when they are wrong
     apply: Callable  # (daemon, value, sessions, reply_to) -> None
     per_performer: bool = False  # a trailing string argument names one performer
+    usage: str = "no arguments"  # its OSC arguments (type tag, meaning), for the refusal's sentence
 
     @property
     def address(self) -> str:
@@ -166,17 +169,25 @@ def _status(daemon, value, sessions, reply_to) -> None:
 
 
 COMMANDS: dict[str, Command] = {c.address: c for c in (
-    Command("intensity", _unit, _set_intensity, per_performer=True),
-    Command("bypass", _flag, _set_bypass, per_performer=True),
-    Command("crossfade", _seconds, _set_crossfade),
-    Command("direction", _name, _set_direction),
-    Command("model", _name, _load_model),
-    Command("style", _style, _set_style, per_performer=True),
-    Command("mix", _mix, _set_style, per_performer=True),
-    Command("calibrate", _nothing, _calibrate, per_performer=True),
+    Command("intensity", _unit, _set_intensity, True, "f value (0 to 1) [s performer]"),
+    Command("bypass", _flag, _set_bypass, True, "i 0 or 1 (f, T and F too) [s performer]"),
+    Command("crossfade", _seconds, _set_crossfade, usage=f"f seconds (0 to {MAX_CROSSFADE_S:g})"),
+    Command("direction", _name, _set_direction, usage="s name, such as a2b or b2a"),
+    Command("model", _name, _load_model, usage="s a shipped model's name or a .safetensors path"),
+    Command("style", _style, _set_style, True, "s style [f weight (0 to 1)] [s performer]"),
+    Command("mix", _mix, _set_style, True, f"s style f weight (0 or more) [s style f weight ...] (up to {MAX_MIX} "
+                                            f"pairs) [s performer]"),
+    Command("calibrate", _nothing, _calibrate, True, "[s performer]"),
     Command("status", _nothing, _status),
 )}
 BY_NAME: dict[str, Command] = {c.name: c for c in COMMANDS.values()}
+
+
+def usage_line(address: str, reason: str) -> str:
+    """The one sentence for a command ``parse_command`` refused for ``reason``."""
+    if reason == "unknown_address":
+        return f"unknown address {address[:80]!r}; the known ones are {', '.join(COMMANDS)}"
+    return f"{address} takes {COMMANDS[address].usage}; ignored"
 
 
 def parse_command(address: str, tags: str, args: tuple):

@@ -5,9 +5,10 @@ the transport (socket, allow-list, counters, queue) and never interprets a comma
 
 Who may talk: UDP is unauthenticated, so the port binds to 127.0.0.1 unless told
 otherwise and accepts datagrams only from an allow-list of source networks (default
-loopback). A refused sender is logged once (per address, bounded) and counted; so is
-every malformed packet, by reason, never line by line: a flood must not become a log
-flood. Decoding uses the strict, never-raising decoder of ``drivers.vmc.osc_packets``.
+loopback). A refused sender is logged once (per address, bounded) and counted; so is a
+command with an unknown address or wrong arguments (once per address and reason, its
+usage said); every malformed packet is counted by reason, never logged line by line: a
+flood must not become a log flood. Decoding uses the strict, never-raising decoder of ``drivers.vmc.osc_packets``.
 
 This thread only receives, checks and queues; the output loop applies the commands at
 the start of its next tick, so a change takes effect on a frame boundary and every
@@ -25,7 +26,7 @@ from collections import Counter, deque
 from stylecast.drivers.vmc.osc_packets import decode, encode_message, pack_datagrams
 from stylecast.motion.errors import UserError
 
-from .commands import parse_command  # noqa: F401  (re-exported: tests and fuzzers use it here)
+from .commands import parse_command, usage_line  # parse_command is also re-exported: tests and fuzzers use it here
 
 log = logging.getLogger("stylecast.daemon")
 
@@ -62,6 +63,7 @@ class ControlServer:
         self.commands: deque = deque()
         self.counts: Counter = Counter()
         self._refused_logged: set = set()
+        self._usage_logged: set = set()  # (address, reason) of wrong commands logged
         self._allowed_cache: dict = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="stylecast-control", daemon=True)
@@ -108,12 +110,22 @@ class ControlServer:
             command = parse_command(address, tags, args)
             if command[0] is None:
                 self.counts[command[1]] += 1
+                self._log_once(address, command[1])
                 continue
             if len(self.commands) >= MAX_QUEUED:
                 self.counts["queue_full"] += 1
                 continue
             self.counts["accepted"] += 1
             self.commands.append((*command, addr))
+
+    def _log_once(self, address: str, reason: str) -> None:
+        """A wrong command's sentence, the first time per address and reason (a bounded
+        number of them: a flood of junk must not become a log flood); later ones are
+        only counted (``/stylecast/status``)."""
+        key = (address[:80], reason)
+        if key not in self._usage_logged and len(self._usage_logged) < _LOGGED_REFUSALS:
+            self._usage_logged.add(key)
+            log.warning("control: %s (further ones are counted, not logged)", usage_line(address, reason))
 
     def drain(self) -> list:
         out = []

@@ -12,6 +12,7 @@ from pythonosc.osc_message_builder import OscMessageBuilder
 
 from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig
+from stylecast.daemon.commands import COMMANDS
 from stylecast.daemon.control import ControlServer
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import StandInRestyler
@@ -118,6 +119,30 @@ def test_malformed_and_unknown_control_packets_are_counted_not_fatal():
         assert sum(v for k, v in server.counts.items() if k.startswith("malformed_")) == 3
     finally:
         server.close()
+
+
+def test_a_wrong_command_gets_one_sentence_with_its_usage_then_is_only_counted(caplog):
+    # Once silent: a Stream Deck button sending /stylecast/style elderly 5.0 did nothing
+    # and said nothing. Over a real socket, each wrong command three times.
+    server = ControlServer("127.0.0.1", 0)
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        wrong = [osc("/stylecast/style", "elderly", 5.0), osc("/stylecast/intensity", "loud"),
+                 osc("/stylecast/styel", "elderly")]
+        for data in wrong * 3:
+            client.sendto(data, server.address)
+        assert wait_for(lambda: server.counts["bad_arguments"] == 6 and server.counts["unknown_address"] == 3)
+    finally:
+        server.close()
+        client.close()
+    lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("control: ")]
+    assert lines == [
+        "control: /stylecast/style takes s style [f weight (0 to 1)] [s performer]; ignored (further ones are "
+        "counted, not logged)",
+        "control: /stylecast/intensity takes f value (0 to 1) [s performer]; ignored (further ones are counted, "
+        "not logged)",
+        "control: unknown address '/stylecast/styel'; the known ones are " + ", ".join(COMMANDS)
+        + " (further ones are counted, not logged)"]
 
 
 def test_crossfade_over_the_socket_changes_the_next_fade_of_every_performer():
