@@ -5,10 +5,11 @@ the transport (socket, allow-list, counters, queue) and never interprets a comma
 
 Who may talk: UDP is unauthenticated, so the port binds to 127.0.0.1 unless told
 otherwise and accepts datagrams only from an allow-list of source networks (default
-loopback). A refused sender is logged once (per address, bounded) and counted; so is a
-command with an unknown address or wrong arguments (once per address and reason, its
-usage said); every malformed packet is counted by reason, never logged line by line: a
-flood must not become a log flood. Decoding uses the strict, never-raising decoder of ``drivers.vmc.osc_packets``.
+loopback). A refused sender is logged once (per address, bounded) and counted; a command
+with wrong arguments is logged with its usage (an unknown address, with the known ones)
+at most once per command every 10 s, and counted; every malformed packet is counted by
+reason, never logged line by line: a flood must not become a log flood. Decoding uses
+the strict, never-raising decoder of ``drivers.vmc.osc_packets``.
 
 This thread only receives, checks and queues; the output loop applies the commands at
 the start of its next tick, so a change takes effect on a frame boundary and every
@@ -19,8 +20,10 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import math
 import socket
 import threading
+import time
 from collections import Counter, deque
 
 from stylecast.drivers.vmc.osc_packets import decode, encode_message, pack_datagrams
@@ -34,6 +37,7 @@ DEFAULT_CONTROL_PORT = 39570
 DEFAULT_ALLOW = ("127.0.0.0/8", "::1/128")
 MAX_QUEUED = 256  # commands waiting for the next tick; more are dropped (counted)
 _LOGGED_REFUSALS = 64
+USAGE_LOG_INTERVAL_S = 10.0  # a wrong command's sentence, at most this often per command
 
 
 def parse_allow(entries) -> list:
@@ -63,7 +67,7 @@ class ControlServer:
         self.commands: deque = deque()
         self.counts: Counter = Counter()
         self._refused_logged: set = set()
-        self._usage_logged: set = set()  # (address, reason) of wrong commands logged
+        self._usage_logged: dict = {}  # wrong commands: a known address (None: any unknown one) -> last logged
         self._allowed_cache: dict = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="stylecast-control", daemon=True)
@@ -119,13 +123,16 @@ class ControlServer:
             self.commands.append((*command, addr))
 
     def _log_once(self, address: str, reason: str) -> None:
-        """A wrong command's sentence, the first time per address and reason (a bounded
-        number of them: a flood of junk must not become a log flood); later ones are
+        """A wrong command's sentence: at most one line per command (all unknown addresses
+        count as one) every ``USAGE_LOG_INTERVAL_S``, so a flood of junk cannot become a log
+        flood (at most one line per command in the table, and one more); the rest are
         only counted (``/stylecast/status``)."""
-        key = (address[:80], reason)
-        if key not in self._usage_logged and len(self._usage_logged) < _LOGGED_REFUSALS:
-            self._usage_logged.add(key)
-            log.warning("control: %s (further ones are counted, not logged)", usage_line(address, reason))
+        key = address if reason == "bad_arguments" else None
+        now = time.monotonic()
+        if now - self._usage_logged.get(key, -math.inf) >= USAGE_LOG_INTERVAL_S:
+            self._usage_logged[key] = now
+            log.warning("control: %s (more within %g s are counted, not logged)", usage_line(address, reason),
+                        USAGE_LOG_INTERVAL_S)
 
     def drain(self) -> list:
         out = []
