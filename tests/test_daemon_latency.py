@@ -193,7 +193,9 @@ def test_after_a_one_off_stall_the_delay_comes_back_although_every_result_takes_
     def recovered(daemon, changes):
         return max(d for d, _ in changes) > 5 and daemon.settings.delay == 5
 
-    daemon, changes = run_real(StallOnce(0.010), 45.0, until=recovered)
+    # Up to 90 s: a shared machine's own stalls raise the delay again now and then (it stops
+    # as soon as the delay is back, about 10 s on a quiet machine).
+    daemon, changes = run_real(StallOnce(0.010), 90.0, until=recovered)
     s = daemon.sessions[0]
     delays, late = [d for d, _ in changes], [n for _, n in changes]
     assert max(delays) > 5, daemon.delay_notes  # the stall raised it
