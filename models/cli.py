@@ -114,7 +114,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("input", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True)
     p.add_argument("--model", default=None, help="checkpoint path or shipped name (default normal2exhausted)")
-    p.add_argument("--direction", choices=("a2b", "b2a"), default="a2b")
+    p.add_argument("--direction", choices=("a2b", "b2a"), help="a pair model's direction (default a2b)")
     p.add_argument("--style", help="target style, or a mix NAME:W,NAME:W (e.g. elderly:0.5,youthful:0.5), for "
                                    "--model multistyle; a pair model takes one of its two styles")
     p.add_argument("--intensity", type=_unit, default=1.0, help="0 = input, 1 = fully restyled")

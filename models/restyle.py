@@ -143,11 +143,13 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
     return retarget.to_source(h_template.replace(rotations=rotations, root_positions=roots), template=template)
 
 
-def restyle_file(input_path, output_path, model=None, direction: str = "a2b", intensity: float = 1.0,
+def restyle_file(input_path, output_path, model=None, direction: str | None = None, intensity: float = 1.0,
                  hop: int = DEFAULT_HOP, fps: float | None = None, map_file=None, restyler=None, live: bool = False,
                  device: str = "cpu", style: str | None = None, feet: str = "auto", pace: str = "style") -> dict:
     """``style``: a style name or mix ("elderly", "elderly:0.5,youthful:0.5"), checked before
     anything is read; a pair model takes one of its two styles (the direction follows).
+    ``direction``: a pair model's ("a2b" when neither it nor a style is given); refused for
+    a model without directions and beside a style, which would each have been ignored.
     ``feet``: where planted feet go (``motion.footlock.FEET``); ``pace``: whose pace the
     output covers ground at (``motion.footlock.PACE_CHOICES``)."""
     from stylecast.motion.bvh import read_bvh, require_frames, write_bvh
@@ -165,7 +167,12 @@ def restyle_file(input_path, output_path, model=None, direction: str = "a2b", in
     check_pace(pace)
     if style is not None:
         parse_mix(style)  # unknown names are refused before the model and the clip are read
-    restyler = restyler or Restyler.load(model, direction, device)
+        if direction is not None:
+            raise UserError(f"--direction {direction} and --style {style} both choose where the restyle goes; "
+                            f"give one of them")
+    restyler = restyler or Restyler.load(model, device=device)
+    if direction is not None:
+        restyler = restyler.with_direction(direction)  # a model without directions says so
     if style is not None:
         restyler = restyler.with_style(style)
     user_map = load_user_map(map_file) if map_file else None

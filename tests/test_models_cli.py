@@ -267,3 +267,24 @@ def test_train_refuses_a_generator_too_big_to_run_live_before_reading_anything(f
     code = main(["train", *flags, "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err
     assert code == 2 and sentence in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+@pytest.mark.parametrize("options, refusal", [
+    (["--model", "multistyle", "--direction", "b2a"], "model multistyle has no directions; choose its style instead"),
+    (["--direction", "b2a", "--style", "exhausted"], "--direction b2a and --style exhausted both choose where the "
+                                                      "restyle goes; give one of them")])
+def test_restyle_refuses_a_direction_it_would_have_ignored(tmp_path, capsys, options, refusal):
+    # Both once ran and wrote a file: the multistyle model to its own style, the pair
+    # model to the style's end whatever the direction said.
+    demo = Path(__file__).resolve().parents[1] / "daemon" / "clips" / "walk_normal.bvh.gz"
+    out = tmp_path / "out.bvh"
+    assert main(["restyle", str(demo), "-o", str(out), *options]) == 2
+    err = capsys.readouterr().err
+    assert refusal in err and "Traceback" not in err and not out.exists()
+
+
+def test_restyle_takes_a_pair_models_direction(tmp_path, capsys):
+    demo = Path(__file__).resolve().parents[1] / "daemon" / "clips" / "walk_normal.bvh.gz"
+    for options, says in (([], "a2b: normal -> exhausted"), (["--direction", "b2a"], "b2a: exhausted -> normal")):
+        assert main(["restyle", str(demo), "-o", str(tmp_path / "out.bvh"), *options]) == 0
+        assert says in capsys.readouterr().out
