@@ -85,7 +85,39 @@ class DaemonConfig:
         from stylecast.models.device import check_device_name
 
         self.device = check_device_name(self.device)
+        self._check_ports()
         return self
+
+    def _check_ports(self) -> None:
+        """A port the daemon listens on (a ``vmc://`` source, the control port) named twice,
+        or also as where it sends: one sentence before any socket is opened. (A second
+        source on a port failed to bind only after the first had started; an output into a
+        source's own port would read back what the daemon sends.)"""
+        from stylecast.drivers.urls import parse_url
+
+        def same_machine(host: str) -> str:
+            return "local" if host in ("", "localhost", "127.0.0.1", "::1", "0.0.0.0", "::") else host
+
+        listening: dict = {}  # port 0: each its own port, picked by the system
+        control = self.control_address()
+        if control is not None and control[1]:
+            listening[(same_machine(control[0]), control[1])] = f"--control {self.control}"
+        for text in self.source:
+            url = parse_url(text)
+            if url.scheme != "vmc" or not url.port:
+                continue
+            key = (same_machine(url.host), url.port)
+            if key in listening:
+                raise UserError(f"--source {text} listens on the port of {listening[key]}; give each source and "
+                                f"the control port a port of its own")
+            listening[key] = f"--source {text}"
+        for option, texts in (("--out", self.out), ("--out-input", self.out_input)):
+            for text in texts:
+                url = parse_url(text)
+                key = (same_machine(url.host), url.port)
+                if url.port is not None and key in listening:
+                    raise UserError(f"{option} {text} sends to the port of {listening[key]}, so the daemon would "
+                                    f"read back what it sends; send to another port")
 
     @property
     def processes(self) -> int:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import ipaddress
 import logging
 import os
+import re
 import socket
 import sys
 
@@ -23,6 +24,7 @@ import pytest
 from stylecast.motion.clock import FakeClock
 from stylecast.daemon.config import DaemonConfig, build_config
 from stylecast.daemon.control import ControlServer
+from stylecast.motion.errors import UserError
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler
 from stylecast.drivers.vmc.osc_packets import encode_message
@@ -206,3 +208,28 @@ def test_the_control_port_replies_only_to_who_asked():
         daemon.close()
         victim.close()
     assert replies == STATUS_REPLIES_PER_TICK  # one datagram per reply; the other requests dropped
+
+
+@pytest.mark.parametrize("flags, refusal", [
+    ({"source": ["vmc://127.0.0.1:39540"], "out": ["vmc://127.0.0.1:39540"]},
+     "--out vmc://127.0.0.1:39540 sends to the port of --source vmc://127.0.0.1:39540, so the daemon would read back "
+     "what it sends"),
+    ({"source": ["vmc://0.0.0.0:39540"], "out": ["vrchat://localhost:39540"]},
+     "--out vrchat://localhost:39540 sends to the port of --source vmc://0.0.0.0:39540"),
+    ({"source": ["vmc://127.0.0.1:39540", "vmc://localhost:39540"], "out": ["vmc://127.0.0.1:39539"]},
+     "--source vmc://localhost:39540 listens on the port of --source vmc://127.0.0.1:39540"),
+    ({"source": ["vmc://127.0.0.1:39570"], "out": ["vmc://127.0.0.1:39539"]},
+     "--source vmc://127.0.0.1:39570 listens on the port of --control 127.0.0.1:39570"),
+    ({"source": ["vmc://127.0.0.1:39540"], "out": ["vmc://127.0.0.1:39539"], "out_input": ["vmc://127.0.0.1:39570"]},
+     "--out-input vmc://127.0.0.1:39570 sends to the port of --control 127.0.0.1:39570")])
+def test_a_listening_port_named_twice_or_sent_to_is_one_sentence_before_any_socket(flags, refusal):
+    # The daemon would read back what it sends, or the second bind would fail only after
+    # the first performer had started.
+    with pytest.raises(UserError, match=re.escape(refusal)):
+        build_config({}, flags)
+
+
+def test_ports_the_system_picks_and_other_machines_ports_are_not_taken_for_a_clash():
+    build_config({}, {"source": ["vmc://127.0.0.1:0", "vmc://127.0.0.1:0"], "out": ["vmc://127.0.0.1:0"],
+                      "control": "127.0.0.1:0"})
+    build_config({}, {"source": ["vmc://127.0.0.1:39540"], "out": ["vmc://192.168.1.20:39540"]})
