@@ -6,20 +6,6 @@ import argparse
 from pathlib import Path
 
 
-def _frame_rate(text: str) -> float:
-    """``--fps`` (``resample.check_frame_rate``: 0 or a negative one once reached the
-    resampler as a traceback, or as no resampling at all)."""
-    from .errors import UserError
-    from .resample import check_frame_rate
-
-    try:
-        return check_frame_rate(float(text))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number of frames per second, got {text}") from None
-    except UserError as exc:
-        raise argparse.ArgumentTypeError(str(exc).removeprefix("--fps ")) from None
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="describe a BVH file: joints, frames, fps, humanoid mapping")
     p.add_argument("file", type=Path)
@@ -29,7 +15,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("convert", help="resample a BVH, or rewrite it on the canonical humanoid")
     p.add_argument("input", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True)
-    p.add_argument("--fps", type=_frame_rate, help="resample to this frame rate")
+    p.add_argument("--fps", type=float, help="resample to this frame rate")
     p.add_argument("--humanoid", action="store_true",
                    help="write the canonical humanoid skeleton (T-pose rest, Unity bone names, centimetres)")
     p.add_argument("--map", type=Path, help="JSON/TOML table of source joint name -> humanoid bone")
@@ -69,8 +55,10 @@ def run_info(args) -> int:
 def run_convert(args) -> int:
     from .bvh import read_bvh, write_bvh
     from .humanoid import Retarget
-    from .resample import resample
+    from .resample import check_frame_rate, resample
 
+    if args.fps is not None:
+        check_frame_rate(args.fps)  # before the file is read, as restyle checks it
     clip = read_bvh(args.input)
     if args.humanoid:
         clip = Retarget.for_clip(clip, _user_map(args.map)).to_humanoid(clip)

@@ -462,7 +462,7 @@ class Pace:
         """The next frames in order: input roots (n, 3), the lock weights (n, 2) and the share
         of the restyle shown (n,) (None: all of it) -> the body's shift (n, 2: x, z) and each
         foot's (n, 2, 2), to take off the input's travel; None while there is none. A
-        recurrence on Python floats (the daemon runs it a frame at a time per performer)."""
+        recurrence on Python floats (``track_one_frame`` is the daemon's frame)."""
         if not (self.on or self._moving):
             self._previous = tuple(np.asarray(roots)[-1, [0, 2]].tolist())
             return None
