@@ -43,6 +43,9 @@ class DaemonConfig:
     model: str = "normal2exhausted"
     direction: str = ""
     style: str = ""  # a multi-style model's style or mix "NAME:W,NAME:W"; "" = the model's own
+    # The style the performers move in, for a multi-style model (its share of a mix is the input
+    # as performed); "" = the neutral style.
+    performer_style: str = ""
     control: str = f"127.0.0.1:{DEFAULT_CONTROL_PORT}"  # "off" disables it
     allow: list[str] = field(default_factory=lambda: list(DEFAULT_ALLOW))
     status_interval: float = 5.0
@@ -82,6 +85,10 @@ class DaemonConfig:
             from stylecast.models.styles import parse_mix
 
             parse_mix(self.style)  # unknown names: one sentence before any model or source is opened
+        if self.performer_style:
+            from stylecast.models.styles import check_style
+
+            check_style(self.performer_style)
         from stylecast.models.device import check_device_name
 
         self.device = check_device_name(self.device)

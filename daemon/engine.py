@@ -49,7 +49,8 @@ from .control import ControlServer
 from .inference import InferenceWorker
 from .latency import MAX_SLACK, calibrate, delay_line, lowered_line, slack_for
 from .output import PerformerSinks, emit_frames, open_outputs, recording_path
-from .restylers import load_restyler, model_name, style_label, style_mix, warm_up, with_direction, with_style
+from .restylers import (load_restyler, model_name, style_label, style_mix, warm_up, with_direction,
+                        with_performer_style, with_style)
 from .session import PendingFrame, Session, push_feet, settle_frames
 from .status import LatencyWindow, status_line, status_messages
 
@@ -156,6 +157,7 @@ class Daemon:
             restyler = with_direction(restyler, config.direction)
         if config.style:
             restyler = with_style(restyler, config.style)
+        restyler = with_performer_style(restyler, config.performer_style)
         self.worker = InferenceWorker(restyler, clock=clock.now)
         self.delay_notes: list[str] = []  # the status lines of delay raises and lowerings (also logged)
         self._configured_delay = self.settings.delay  # the planner never lowers below it
@@ -472,7 +474,7 @@ class Daemon:
     def _load_models(self, name: str | None) -> None:
         while name is not None:
             try:
-                model = self.model_loader(name)
+                model = with_performer_style(self.model_loader(name), self.config.performer_style)
                 warm_up(model)  # here, not in its first live call (``Restyler.warm_up``)
             except Exception as exc:  # a bad name or checkpoint must not stop the show
                 self._control_error(f"model {name!r} not loaded: {exc}")

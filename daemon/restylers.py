@@ -106,6 +106,13 @@ def with_style(restyler, text: str):
                     f"(--model multistyle)")
 
 
+def with_performer_style(restyler, style: str):
+    """``serve --performer-style NAME``: the model told the style the performers move in
+    (a pair model refuses another than its source); stand-ins and "" pass unchanged."""
+    maker = getattr(restyler, "with_performer_style", None)
+    return maker(style) if style and callable(maker) else restyler
+
+
 def style_mix(restyler, pairs) -> tuple:
     """(weights, label) of a live style change for ``restyler``'s style codes."""
     if not callable(getattr(restyler, "with_mix", None)):

@@ -117,6 +117,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--direction", choices=("a2b", "b2a"), help="a pair model's direction (default a2b)")
     p.add_argument("--style", help="target style, or a mix NAME:W,NAME:W (e.g. elderly:0.5,youthful:0.5), for "
                                    "--model multistyle; a pair model takes one of its two styles")
+    p.add_argument("--performer-style", metavar="NAME",
+                   help="the style the input is performed in (default normal), for --model multistyle: its share "
+                        "of a style mix is the input as performed")
     p.add_argument("--intensity", type=_unit, default=1.0, help="0 = input, 1 = fully restyled")
     p.add_argument("--hop", type=_positive_int,
                    help="frames between words (1..60; 60 = no overlap); default: as `serve`")
@@ -340,7 +343,7 @@ def run_restyle(args) -> int:
     info = restyle_file(args.input, args.output, model=args.model, direction=args.direction,
                         intensity=args.intensity, hop=args.hop or DEFAULT_HOP, fps=args.fps, map_file=args.map,
                         live=args.live, device=args.device, style=args.style, feet=args.feet,
-                        pace=args.pace)
+                        pace=args.pace, performer_style=args.performer_style)
     print(f"wrote {args.output}: {info['joints']} joints, {info['frames']} frames at {info['fps']:g} fps "
           f"({info['model']}{', ' + info['direction'] if info['direction'] else ''}: {info['from']} -> {info['to']})")
     return 0

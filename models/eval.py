@@ -156,6 +156,7 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
         if not other.accepts_source(source):
             log(f"skipping {name}: it restyles {other.source_style} input, not {source}")
             continue
+        other = other.with_performer_style(source)
         out.append(Variant(name, other.restyle_words, f"`{path}` ({other.name}, {other.source_style} -> "
                                                       f"{other.target_style})", contacts=feet_for(AUTO_FEET, other)))
     out.append(Variant("proposed-unlocked", proposed.restyle_words, "the model under test without the foot lock",
@@ -293,6 +294,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
     if not loaded.accepts_source(source):
         raise UserError(f"model {loaded.name} restyles from {loaded.eval_source} in this direction, not from {source}; "
                         f"drop --source or use --direction")
+    loaded = loaded.with_performer_style(source)  # a multi-style model passes that style's share through
     if targets == ["all"]:
         targets = [s for s in STYLES if s != source]
     targets = list(targets or ([loaded.default_target] if loaded.default_target else []))

@@ -145,13 +145,16 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
 
 def restyle_file(input_path, output_path, model=None, direction: str | None = None, intensity: float = 1.0,
                  hop: int = DEFAULT_HOP, fps: float | None = None, map_file=None, restyler=None, live: bool = False,
-                 device: str = "cpu", style: str | None = None, feet: str = "auto", pace: str = "style") -> dict:
+                 device: str = "cpu", style: str | None = None, feet: str = "auto", pace: str = "style",
+                 performer_style: str | None = None) -> dict:
     """``style``: a style name or mix ("elderly", "elderly:0.5,youthful:0.5"), checked before
     anything is read; a pair model takes one of its two styles (the direction follows).
     ``direction``: a pair model's ("a2b" when neither it nor a style is given); refused for
     a model without directions and beside a style, which would each have been ignored.
     ``feet``: where planted feet go (``motion.footlock.FEET``); ``pace``: whose pace the
-    output covers ground at (``motion.footlock.PACE_CHOICES``)."""
+    output covers ground at (``motion.footlock.PACE_CHOICES``). ``performer_style``: the style
+    the input is performed in (a multi-style model's; its share of a mix is the input as
+    performed), refused by a pair model of another source."""
     from stylecast.motion.bvh import read_bvh, require_frames, write_bvh
     from stylecast.motion.footlock import check_feet, check_pace, feet_for
     from stylecast.motion.humanoid import load_user_map
@@ -159,12 +162,14 @@ def restyle_file(input_path, output_path, model=None, direction: str | None = No
 
     from .restyler import Restyler
 
-    from .styles import parse_mix
+    from .styles import check_style, parse_mix
 
     if fps is not None:
         check_frame_rate(fps)
     check_feet(feet)
     check_pace(pace)
+    if performer_style is not None:
+        check_style(performer_style)
     if style is not None:
         parse_mix(style)  # unknown names are refused before the model and the clip are read
         if direction is not None:
@@ -175,6 +180,8 @@ def restyle_file(input_path, output_path, model=None, direction: str | None = No
         restyler = restyler.with_direction(direction)  # a model without directions says so
     if style is not None:
         restyler = restyler.with_style(style)
+    if performer_style is not None:
+        restyler = restyler.with_performer_style(performer_style)
     user_map = load_user_map(map_file) if map_file else None
     clip = require_frames(read_bvh(Path(input_path)), str(input_path))
     out = restyle_clip(clip, restyler, hop, intensity, fps, user_map, live, feet_for(feet, restyler, pace))

@@ -120,6 +120,14 @@ class Restyler:
         """Whether this restyler is meant for input of ``style``."""
         return style == self.source_style
 
+    def with_performer_style(self, style: str) -> "Restyler":
+        """This restyler for input performed in ``style``: a pair model's source is its
+        direction's, so it is itself for that style and refuses any other."""
+        if not self.accepts_source(style):
+            raise UserError(f"model {self.name} restyles {self.source_style} input in this direction, not {style}; "
+                            f"choose the direction instead, or load the multistyle model (--model multistyle)")
+        return self
+
     @property
     def default_target(self) -> str | None:
         """The style ``stylecast eval`` measures when none is named."""

@@ -16,7 +16,7 @@ from stylecast.daemon.commands import parse_command
 from stylecast.daemon.config import DaemonConfig
 from stylecast.motion.footlock import FEET
 from stylecast.daemon.engine import Daemon
-from stylecast.daemon.restylers import StandInRestyler
+from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler
@@ -61,8 +61,9 @@ def spy(path) -> Spy:
     return s
 
 
-def make(restyler, style=""):
-    cfg = DaemonConfig(hop=15, control="127.0.0.1:0", allow=["127.0.0.1"], style=style)
+def make(restyler, style="", performer_style=""):
+    cfg = DaemonConfig(hop=15, control="127.0.0.1:0", allow=["127.0.0.1"], style=style,
+                       performer_style=performer_style)
     sources = [ReplaySource(walk_clip(900, seed=k), name, loop=True) for k, name in enumerate(("alice", "bob"))]
     return Daemon(cfg, sources, restyler, FakeClock(), log_status=False)
 
@@ -87,6 +88,48 @@ def test_serve_style_is_checked_before_anything_opens():
         DaemonConfig(style="sleepy").validate()
     with pytest.raises(UserError, match="no styles to choose"):
         make(StandInRestyler(), style="elderly")
+
+
+def test_serve_performer_style_is_checked_before_anything_opens_and_a_pair_model_refuses_another_source():
+    with pytest.raises(UserError, match="unknown style 'sleepy'.*youthful"):
+        DaemonConfig(performer_style="sleepy").validate()
+    pair = Restyler.load("normal2exhausted")
+    with pytest.raises(UserError, match="restyles normal input in this direction, not elderly"):
+        make(pair, performer_style="elderly")
+
+
+def _served(restyler, **config) -> dict:
+    """Every frame the daemon sends for two replayed walks (virtual clock), per performer."""
+    frames: dict = {}
+
+    def tap(frame):
+        frames.setdefault(frame.performer, []).append(np.concatenate([np.ravel(frame.rotations),
+                                                                      np.ravel(frame.root_position)]))
+
+    sources = [ReplaySource(walk_clip(240, seed=k), name) for k, name in enumerate(("alice", "bob"))]
+    d = Daemon(DaemonConfig(hop=15, control="off", **config), sources, restyler, FakeClock(), frame_taps=[tap],
+               log_status=False)
+    d.start()
+    while not d.finished:
+        d.step()
+    d.close()
+    return {k: np.array(v) for k, v in frames.items()}
+
+
+def _largest_difference(a: dict, b: dict) -> float:
+    assert a.keys() == b.keys() and all(len(a[k]) == len(b[k]) > 200 for k in a)
+    return max(float(np.abs(a[k] - b[k]).max()) for k in a)
+
+
+def test_the_performers_own_style_is_served_as_performed(tiny_multistyle):
+    """``serve --model multistyle`` before any style is chosen (the neutral style) sends the
+    input, and so does a style the performers are told they move in; the generator's own
+    code for that style moved them (the known-bad case, ``code_and_intensity``)."""
+    model = Restyler.load(tiny_multistyle)
+    as_performed = _served(IdentityRestyler())
+    assert _largest_difference(_served(model), as_performed) < 1e-5
+    assert _largest_difference(_served(model, style="elderly", performer_style="elderly"), as_performed) < 1e-5
+    assert _largest_difference(_served(model, style="elderly"), as_performed) > 1e-2
 
 
 def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multistyle, caplog):

@@ -16,7 +16,7 @@ from stylecast.models import checkpoint as ckpt
 from stylecast.models.multistyle import MultiStyleConfig, StyleDiscriminator, make_generator
 from stylecast.models.representation import get_representation
 from stylecast.models.restyler import Restyler
-from stylecast.models.restyler_multistyle import MultiStyleRestyler
+from stylecast.models.restyler_multistyle import MultiStyleRestyler, code_and_intensity
 from stylecast.models.styles import STYLES, describe_mix, one_hot, parse_mix
 from stylecast.models.train_multistyle import MultiStyleTrainConfig, MultiStyleTrainer, train_multistyle
 from stylecast.motion.errors import UserError
@@ -119,6 +119,67 @@ def test_per_word_styles_in_one_batch_equal_separate_calls(net):
     for i, w in enumerate(mixes):
         alone = g(x[i:i + 1], torch.from_numpy(w[None]).float())
         assert torch.allclose(together[i:i + 1], alone, atol=1e-5)
+
+
+# --- the performer's own style -------------------------------------------------------------------
+
+def _restyler(net: MultiStyleConfig = TINY) -> MultiStyleRestyler:
+    return MultiStyleRestyler(_generator(net=net), get_representation("euler"), {"styles": list(STYLES)})
+
+
+def _max_degrees(a: np.ndarray, b: np.ndarray) -> float:
+    from scipy.spatial.transform import Rotation
+
+    turn = Rotation.from_quat(a.reshape(-1, 4)).inv() * Rotation.from_quat(b.reshape(-1, 4))
+    return float(np.degrees(turn.magnitude()).max())
+
+
+@each_generator
+def test_the_performers_own_style_is_the_input_and_its_half_mix_is_half_the_restyle(net):
+    """The generator is told only a target, and its code for the input's own style is not
+    the identity (the known-bad case: the code path, which moves these words); the share of
+    the performer's style is the input as performed instead."""
+    r, words = _restyler(net), synthetic_words(3, 1)
+    assert r.performer_style == "normal"
+    assert _max_degrees(r.for_target("normal").restyle_words(words), words) < 1e-3
+    code_path = r.with_mix(one_hot("normal"))
+    code_path.performer_style = "elderly"  # the normal code run through the generator
+    assert _max_degrees(code_path.restyle_words(words), words) > 0.05
+    half = r.with_style("elderly:0.5,normal:0.5").restyle_words(words)
+    assert np.allclose(half, r.with_mix(one_hot("elderly"), intensity=0.5).restyle_words(words), atol=1e-6)
+    assert _max_degrees(half, words) > 0.05 and _max_degrees(half, r.for_target("elderly").restyle_words(words)) > 0.05
+    # What the generator is given: a mix without the performer's style is its code at full
+    # strength, as before; with it, the other styles' code at the share they have.
+    mixes = torch.tensor(np.stack([parse_mix("elderly:0.25,youthful:0.75"), parse_mix("elderly:0.5,normal:0.5"),
+                                   one_hot("normal")]), dtype=torch.float32)
+    code, kept = code_and_intensity(mixes, STYLES.index("normal"))
+    assert torch.equal(code[0], mixes[0]) and torch.equal(code[1], torch.tensor(one_hot("elderly")).float())
+    assert kept.tolist() == [1.0, 0.5, 0.0]
+
+
+def test_told_another_performer_style_that_style_passes_through_and_normal_is_restyled():
+    r, words = _restyler().with_performer_style("elderly"), synthetic_words(3, 2)
+    assert _max_degrees(r.for_target("elderly").restyle_words(words), words) < 1e-3
+    assert _max_degrees(r.for_target("normal").restyle_words(words), words) > 0.05
+    # Each word its own mix, one call: the same as each alone, the performer's share included.
+    mixes = np.stack([one_hot("elderly"), one_hot("normal"), parse_mix("elderly:0.5,active:0.5")])
+    together = r.restyle_words(words, mixes)
+    for i, w in enumerate(mixes):
+        assert np.allclose(together[i], r.with_mix(w).restyle_words(words[i:i + 1])[0], atol=1e-6)
+    with pytest.raises(UserError, match="unknown style 'ancient'"):
+        r.with_performer_style("ancient")
+
+
+@needs_data
+def test_the_shipped_model_passes_a_normal_performance_told_normal_through():
+    """On a real walk: the code path moved it by degrees (3.55 a bone on average over the
+    held-out normal words); the performer's own style now leaves it as performed."""
+    from stylecast.models import data as D
+
+    words = D.cut_words(D.decode_file(CLIP)[0].astype(np.float64), 30)[:4]
+    r = Restyler.load("multistyle")
+    assert _max_degrees(r.restyle_words(words), words) < 1e-3  # its default style is normal
+    assert _max_degrees(r.with_performer_style("elderly").restyle_words(words), words) > 5.0
 
 
 # --- the style names ---------------------------------------------------------------------------
@@ -235,6 +296,18 @@ def test_restyle_refuses_an_unknown_style_before_reading_anything(tmp_path, caps
                  str(tmp_path / "absent.safetensors"), "--style", "sleepy"])
     err = capsys.readouterr().err
     assert code == 2 and "unknown style 'sleepy'" in err and "youthful" in err and "Traceback" not in err
+
+
+def test_restyle_checks_the_performer_style_first_and_a_pair_model_refuses_another_source(tmp_path, capsys):
+    code = main(["restyle", str(tmp_path / "absent.bvh"), "-o", str(tmp_path / "o.bvh"), "--model",
+                 str(tmp_path / "absent.safetensors"), "--performer-style", "sleepy"])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown style 'sleepy'" in err and "Traceback" not in err
+    # The shipped pair model restyles normal input: told elderly, one sentence before the clip is read.
+    code = main(["restyle", str(tmp_path / "absent.bvh"), "-o", str(tmp_path / "o.bvh"), "--performer-style",
+                 "elderly"])
+    err = capsys.readouterr().err
+    assert code == 2 and "restyles normal input in this direction, not elderly" in err and "Traceback" not in err
 
 
 def test_eval_refuses_an_unknown_target_and_needs_one_for_a_multistyle_model(tmp_path, capsys):

@@ -70,7 +70,7 @@ def _between(v, a, b) -> bool:
     return min(a, b) < v < max(a, b)
 
 
-@pytest.mark.parametrize("a, b", [("elderly", "youthful"), ("exhausted", "active")])
+@pytest.mark.parametrize("a, b", [("elderly", "youthful"), ("exhausted", "active"), ("normal", "elderly")])
 def test_halfway_between_two_styles_sits_between_them(world, a, b):
     judge, real, clips, skeleton, model = world
     w = {mix: _windows(model, mix, clips, skeleton) for mix in (a, f"{a}:0.5,{b}:0.5", b)}
