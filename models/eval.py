@@ -33,6 +33,8 @@ overall and per action:
   clips to real source-style clips of each action;
 * planted-foot slide: horizontal foot speed where the input's foot is planted (output /
   input);
+* skating on the output's own contacts (``metrics.skate_samples``: feet moving while low,
+  wherever the input's were), output / input, stricter than the issue;
 * timing sync (correlation of body speed, input vs output);
 * seam ratio (METHOD.md) of the blended output, and of plain 60-frame words for contrast;
 * the travel ceiling (``travel_ceiling``): real target-style clips judged with their root
@@ -188,6 +190,7 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
     jerk_in, jerk_out = M.jerk(p_in), M.jerk(p_out)
     return {"jerk_in": jerk_in, "jerk_out": jerk_out,
             "slide_in": M.slide_samples(p_in, planted), "slide_out": M.slide_samples(p_out, planted),
+            "skate_in": M.skate_samples(p_in), "skate_out": M.skate_samples(p_out),
             "hold_in": M.hold_samples(p_in, held), "hold_out": M.hold_samples(p_out, held),
             "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
             "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out)}
@@ -212,6 +215,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
     g_in, g_out = M.group_means(jin), M.group_means(jout)
     s_in = np.concatenate([c["slide_in"] for c in per_clip])
     s_out = np.concatenate([c["slide_out"] for c in per_clip])
+    k_in = np.concatenate([c["skate_in"] for c in per_clip])
+    k_out = np.concatenate([c["skate_out"] for c in per_clip])
     h_in = np.concatenate([c["hold_in"] for c in per_clip])
     h_out = np.concatenate([c["hold_out"] for c in per_clip])
     # Votes are (judges, windows): every figure read by the judges is given per judge and
@@ -255,6 +260,9 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "slide_input_cm_per_frame": float(s_in.mean()) if s_in.size else float("nan"),
         "slide_ratio": _mean_ratio(s_out, s_in),
         "planted_frames": int(s_in.size // 2),
+        "skate_cm_per_frame": float(k_out.mean()) if k_out.size else float("nan"),
+        "skate_input_cm_per_frame": float(k_in.mean()) if k_in.size else float("nan"),
+        "skate_ratio": _mean_ratio(k_out, k_in),
         "hold_cm_per_frame": float(h_out.mean()) if h_out.size else float("nan"),
         "hold_input_cm_per_frame": float(h_in.mean()) if h_in.size else float("nan"),
         "hold_ratio": _mean_ratio(h_out, h_in),
@@ -358,7 +366,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
 
     # Real target-style motion against real source-style motion of the same action.
     # (A take's own holds: real motion has no input to hold still against.)
-    real_jerk, real_hold = {}, {}
+    real_jerk, real_hold, real_skate = {}, {}, {}
     for a in actions:
         pos = {s: [M.world_positions(m.rotations, m.root_positions, skeleton) for m in held[s] if m.file.action == a]
                for s in (source, target)}
@@ -368,6 +376,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
             real_jerk[a] = {g: gt[g] / max(gs[g], 1e-12) for g in gs}
             h = {s: np.concatenate([M.hold_samples(p, M.held(p)) for p in pos[s]]) for s in pos}
             real_hold[a] = _mean_ratio(h[target], h[source])
+            k = {s: np.concatenate([M.skate_samples(p) for p in pos[s]]) for s in pos}
+            real_skate[a] = _mean_ratio(k[target], k[source])
 
     clips = held[source]
     act_idx = [actions.index(m.file.action) for m in clips]
@@ -438,7 +448,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "judge_seeds": judges.seeds, "judge_panel": judges.describe(),
                "dynamics_judge_seeds": judges.dynamics_seeds,
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
-               "real_target_jerk_ratio": real_jerk, "real_target_hold_ratio": real_hold, "travel_ceiling": ceiling,
+               "real_target_jerk_ratio": real_jerk, "real_target_hold_ratio": real_hold,
+               "real_target_skate_ratio": real_skate, "travel_ceiling": ceiling,
                "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
                "torch_threads": _torch_threads()}

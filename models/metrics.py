@@ -49,6 +49,10 @@ JOINT_GROUPS: dict[str, tuple[str, ...]] = {
 }
 PLANT_HEIGHT = 3.0  # cm above the lowest the joint goes in the clip
 PLANT_SPEED = 0.5  # cm per frame at 60 fps (30 cm/s)
+# cm above the lowest a foot joint goes: the band ``skate_samples`` reads a foot in as on
+# (or at) the floor, whatever it does after; an ankle in a held-out normal walk's swing
+# passes 10-15 cm up, its heel-strike and toe-off within 5.
+SKATE_HEIGHT = 5.0
 HOLD_JOINTS = ("LeftHand", "RightHand", "Head")
 # cm per frame at 60 fps (9 cm/s) against the hips: a hand held up in a held-out raise moves
 # 0.06 cm a frame on average, a raising or waving hand 1-4.
@@ -107,6 +111,24 @@ def slide_samples(positions: np.ndarray, masks: dict[str, np.ndarray]) -> np.nda
     """Horizontal speeds of both joints of each foot over that foot's planted frames
     (of the input: ``masks`` from ``planted(input)``), concatenated."""
     parts = [horizontal_speed(positions, j)[masks[side]] for side, names in FOOT_JOINTS.items() for j in names]
+    return np.concatenate(parts)
+
+
+def skate_samples(positions: np.ndarray) -> np.ndarray:
+    """Foot skating read on the motion's OWN contacts, never the input's: per frame pair
+    and foot joint (ankle and ball of each foot), the horizontal distance moved while the
+    joint is within SKATE_HEIGHT of the lowest it goes in the clip, weighted by
+    2 - 2^(h / SKATE_HEIGHT) (1 on the floor, 0 at the band's top: Zhang et al.'s skating
+    measure, 2018), 0 elsewhere. (T-1) x 4 samples, so an output and its input compare by
+    their means. ``slide_samples`` cannot see a heel dragged along the floor before the
+    input's foot lands (the input is not planted yet); this can."""
+    parts = []
+    for names in FOOT_JOINTS.values():
+        for j in _index(names):
+            height = positions[:, j, 1] - positions[:, j, 1].min()
+            h = np.maximum(height[1:], height[:-1])
+            speed = np.linalg.norm(np.diff(positions[:, j][:, [0, 2]], axis=0), axis=-1)
+            parts.append(np.where(h < SKATE_HEIGHT, (2.0 - 2.0 ** (h / SKATE_HEIGHT)) * speed, 0.0))
     return np.concatenate(parts)
 
 

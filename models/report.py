@@ -22,6 +22,11 @@ GOALS = (
     ("largest one-frame jerk / input's, worst clip (pops; stricter than the issue)", "peak_jerk_ratio",
      lambda v, m: v <= 1.5, "<= 1.5"),
     ("planted-foot slide / input's", "slide_ratio", lambda v, m: v <= 1.5, "<= 1.5"),
+    # Stricter than the issue (metrics.skate_samples): skating read on the output's own
+    # contacts, as an instrument that never sees the input would, so a heel dragged along the
+    # floor before the input's foot lands counts. Absent from reports before it.
+    ("foot skating on the output's own contacts / input's (stricter than the issue)", "skate_ratio",
+     lambda v, m: v <= 1.5, "<= 1.5"),
     # Stricter than the issue (metrics.held): where the input holds a hand or the head still,
     # the output's speed there over the input's. Absent from reports before it.
     ("held hands and head: speed / input's where the input holds still (stricter than the issue)",
@@ -62,8 +67,9 @@ def goal_values(overall: dict, floors: list[float]) -> dict:
               "jerk_all": overall["jerk_ratio"]["all"], "slide_ratio": overall["slide_ratio"],
               "timing_sync": overall["timing_sync"], "seam_ratio_relative": overall["seam_ratio_relative"],
               "fmd_ratio": max(fmd_ratios(overall, floors))}
-    if "hold_ratio" in overall:
-        values["hold_ratio"] = overall["hold_ratio"]
+    for key in ("hold_ratio", "skate_ratio"):  # absent from reports before these measures
+        if key in overall:
+            values[key] = overall[key]
     if overall.get("action_kept_short_judges"):
         values["action_kept_short"] = min(overall["action_kept_short_judges"])
     if overall.get("judged_target_dynamics_judges"):
@@ -169,9 +175,10 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
         lines += ["", f"## All variants, {setting} (all actions)", "",
                   "| variant | judged target | action kept (2 s) | action kept (1 s) | FMD / floor | jerk all | "
                   "jerk hands | jerk feet | largest one-frame jerk / input's, worst clip (median) | "
-                  "slide cm/frame (ratio) | held hands and head cm/frame (ratio) | feet below floor mean / p99 cm | "
+                  "slide cm/frame (ratio) | skating, own contacts, cm/frame (ratio) | "
+                  "held hands and head cm/frame (ratio) | feet below floor mean / p99 cm | "
                   "sync | seam (/ input's) | judged target, dynamics |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for name, r in res.items():
             o = r[setting]["overall"]
             jr = o["jerk_ratio"]
@@ -182,6 +189,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                          f"{_num(jr['all'], 2)} | {_num(jr['hands'], 2)} | {_num(jr['feet'], 2)} | "
                          f"{_num(o.get('peak_jerk_ratio'), 2)} ({_num(o.get('peak_jerk_ratio_median'), 2)}) | "
                          f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
+                         f"{_num(o.get('skate_cm_per_frame'), 3)} ({_num(o.get('skate_ratio'), 2)}) | "
                          f"{_num(o.get('hold_cm_per_frame'), 3)} ({_num(o.get('hold_ratio'), 2)}) | "
                          f"{_num(o['floor_penetration_cm'], 2)} / {_num(o['floor_penetration_p99_cm'], 1)} | "
                          f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
@@ -197,6 +205,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                             ("action kept (1 s)", "action_kept_short", _pct),
                             ("jerk ratio, all joints", None, lambda v: _num(v, 2)),
                             ("planted-foot slide ratio", "slide_ratio", lambda v: _num(v, 2)),
+                            ("skating on the output's own contacts, ratio", "skate_ratio", lambda v: _num(v, 2)),
                             ("held hands and head, speed ratio", "hold_ratio", lambda v: _num(v, 2)),
                             ("timing sync", "timing_sync", lambda v: _num(v, 3))):
         lines += ["", f"## Per action, stream: {title}", "", "| variant | " + " | ".join(actions) + " |",
@@ -214,12 +223,15 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
             row = res[name]["stream"]["per_action"][a].get("action_taken_as", {})
             lines.append(f"| {a} | " + " | ".join(_pct(row[b]) if b in row else "-" for b in actions) + " |")
     holds = m.get("real_target_hold_ratio", {})  # absent from reports before the hold measure
-    lines += ["", f"## Real motion: jerk (and holds) of real {tgt} clips over real {src} clips of the same action", "",
-              "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else ""),
-              "|---|---|---|---|" + ("---|" if holds else "")]
+    skates = m.get("real_target_skate_ratio", {})  # ...and the skating measure
+    lines += ["", f"## Real motion: jerk (and holds, skating) of real {tgt} clips over real {src} clips of the same "
+              "action", "",
+              "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else "")
+              + (" skating on own contacts |" if skates else ""),
+              "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "")]
     for a, g in m["real_target_jerk_ratio"].items():
         lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |"
-                     + (f" {_num(holds.get(a), 2)} |" if holds else ""))
+                     + (f" {_num(holds.get(a), 2)} |" if holds else "") + (f" {_num(skates.get(a), 2)} |" if skates else ""))
     lines += travel_ceiling_lines(m)
     lines += ["", "## Seams", "",
               f"Seam ratio of the model under test as plain 60-frame words (the paper's setting, no blend): "

@@ -91,6 +91,39 @@ def test_a_sliding_foot_raises_the_slide_a_still_one_does_not():
     assert not M.planted(planted_foot_positions(slide_cm=2 * M.PLANT_SPEED))["left"].any()
 
 
+def _stepping_foot(frames: int = 120, clearance_cm: float = 3.0) -> np.ndarray:
+    """Positions (T, J, 3): the left foot swings forward 2 cm a frame ``clearance_cm`` above
+    the floor for 20 frames, then stands 20, and again; the rest of the body far above."""
+    p = np.full((frames, J, 3), 100.0)
+    phase = np.arange(frames) % 40
+    swing = phase < 20
+    forward = 2.0 * (np.minimum(phase, 20) + 20 * (np.arange(frames) // 40))
+    for joint, rest in ((FOOT, 8.0), (TOES, 2.0)):
+        p[:, joint] = [10.0, rest, 0.0]
+        p[:, joint, 2] = forward + (10.0 if joint == TOES else 0.0)
+        p[:, joint, 1] += np.where(swing, clearance_cm * np.sin(np.pi * phase / 20.0), 0.0)
+    return p
+
+
+def test_a_heel_dragged_along_the_floor_raises_the_skating_though_the_planted_slide_cannot_see_it():
+    lifted, dragged = _stepping_foot(clearance_cm=12.0), _stepping_foot(clearance_cm=0.0)
+
+    def left(p):  # the left foot's ankle and ball (the fixtures' right foot floats past at one height)
+        return M.skate_samples(p).reshape(4, -1)[:2]
+
+    # Identity: the ratio is 1; standing still: nothing.
+    assert left(lifted).mean() / left(lifted).mean() == 1.0
+    assert left(planted_foot_positions()).max() == 0.0
+    # A foot swung high is low only at lift-off and landing; dragged, it skates the whole step.
+    assert left(dragged).mean() > 3 * left(lifted).mean() > 0.0
+    # Planted where the input stands: the input-contact slide sees no difference at all.
+    masks = M.planted(lifted)
+    assert masks["left"].any()
+    assert M.slide_samples(dragged, masks).mean() == M.slide_samples(lifted, masks).mean() == 0.0
+    # A planted foot sliding skates too, 1 cm a frame on the floor (weight 1).
+    assert left(planted_foot_positions(slide_cm=1.0)).mean() == pytest.approx(1.0)
+
+
 def test_timing_sync_falls_for_a_retimed_or_frozen_output():
     q, roots = smooth_motion(360)
     sk = humanoid_skeleton_default()
