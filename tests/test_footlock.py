@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import (FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, PelvisHeight, StanceOffset,
+from stylecast.motion.footlock import (CLEARANCE_BAND, CLEARANCE_SLACK, FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, PelvisHeight, StanceOffset,
                                       _hysteresis, leg_chain, plan_locks, push_frames, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
@@ -558,7 +558,9 @@ def test_a_foot_that_comes_down_onto_the_floor_is_eased_into_the_lift():
     q[:, upper] = rot.exp_map(np.array([-0.1, 0.0, 0.0]))
     q[:, lower] = rot.exp_map(np.array([1.0, 0.0, 0.0]))  # the input's foot 19 cm up, still
     out = q.copy()
-    bend = np.linspace(0.6, -0.02, n)  # the restyle straightens the knee, through the floor
+    # The restyle straightens the knee from the input's bend down through the clearance the
+    # input keeps near the floor (``CLEARANCE_BAND``: the ankle 4.5 cm above standing height).
+    bend = np.linspace(1.0, 0.38, n)
     out[:, lower] = rot.exp_map(np.stack([bend, 0 * bend, np.radians(3.0) + 0 * bend], -1))
     lock = FootLock(SK)
     assert not lock.push(roots, q)[:, 1].any()
@@ -567,6 +569,38 @@ def test_a_foot_that_comes_down_onto_the_floor_is_eased_into_the_lift():
     lifted = p_out[:, 1, 2, 1] - p_raw[:, 1, 2, 1] > 1e-6
     assert 0 < lifted.argmax() and lifted.sum() > n // 2  # the lift begins part way through
     assert np.linalg.norm(np.diff(p_out[:, 1, 1], axis=0), axis=-1).max() < 0.1  # the knee never jumps
+
+
+def test_a_foot_in_the_air_near_the_floor_keeps_the_inputs_clearance_and_higher_up_the_restyles():
+    """A landing heel the restyle (here a straighter knee) puts on the floor before the
+    input's does: with the floor alone it was set down early and dragged there (a
+    held-out walk: its ankle at standing height, moving 1.5-2 cm a frame). Near the
+    floor (within CLEARANCE_BAND of the ankle's standing height) it keeps the input's
+    clearance less CLEARANCE_SLACK; higher up a swing is the restyle's own, down to the
+    band."""
+    n = 60
+    roots, q = stepping(1)
+    q, roots = np.repeat(q, n, axis=0), np.repeat(roots, n, axis=0)
+    upper, lower = (HUMANOID_BONES.index(f"Right{b}") for b in ("UpperLeg", "LowerLeg"))
+    standing = leg_chain(roots, q, SK.offsets)[0][0, 0, 2, 1]  # the left ankle, planted
+    heights = {}
+    # (hip, knee) of the input's right leg, then of the restyle's: held still in the air
+    for name, leg_in, leg_out in (("near", (-0.1, 0.55), (-0.1, 0.3)), ("high", (-0.9, 1.0), (-0.7, 1.0))):
+        out = q.copy()
+        for x, (hip, knee) in ((q, leg_in), (out, leg_out)):
+            x[:, upper] = rot.exp_map(np.array([hip, 0.0, 0.0]))
+            x[:, lower] = rot.exp_map(np.array([knee, 0.0, 0.0]))
+        lock = FootLock(SK, settings=ContactSettings(plant_height=0.5))  # its ball 0.7 cm up: in the air
+        assert not lock.push(roots, q)[:, 1].any()  # the right foot is in the air throughout
+        new_roots, result = lock.apply(0, roots, q, out)
+        heights[name] = [leg_chain(r, x, SK.offsets)[0][10:, 1, 2, 1] - standing
+                         for r, x in ((roots, q), (roots, out), (new_roots, result))]
+    own, restyled, locked = heights["near"]  # the input's, the restyle's and the lock's, above standing
+    assert 1.0 < own.min() < CLEARANCE_BAND - 1.0 and restyled.max() < 0.0  # the restyle puts it on the floor
+    assert np.all(locked > own - CLEARANCE_SLACK - 0.05) and np.all(locked <= own + 1e-6)
+    own, restyled, locked = heights["high"]
+    assert restyled.min() > CLEARANCE_BAND + 5.0 and own.min() > restyled.max() + 3.0
+    np.testing.assert_allclose(locked, restyled, atol=1e-6)  # lowered by 3 cm or more, and left there
 
 
 def test_the_lock_sets_in_and_lets_go_with_zero_slope():
