@@ -142,7 +142,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("eval", help="judge a model on held-out files: style, action, FMD, jerk, foot slide, "
                                      "timing, seams, against the input and the baselines")
     p.add_argument("--model", default=None, help="model under test (default normal2exhausted)")
-    p.add_argument("--direction", choices=("a2b", "b2a"), default="a2b")
+    p.add_argument("--direction", choices=("a2b", "b2a"), help="a pair model's direction (default a2b)")
     p.add_argument("--target", action="append", metavar="STYLE",
                    help="target style to measure (repeat for several, or 'all': every style but the source); "
                         "default: the model's target (a multistyle model needs it)")

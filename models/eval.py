@@ -276,7 +276,7 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
 
 def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str] | None = None,
              max_files: int | None = None, hop: int = DEFAULT_HOP, data_dir=None, cache_dir=None,
-             seed: int = 0, direction: str = "a2b", log=print, targets: list[str] | None = None,
+             seed: int = 0, direction: str | None = None, log=print, targets: list[str] | None = None,
              source: str | None = None, panel: int = PANEL, dynamics: int = DYNAMICS_PANEL,
              recurrent: int = RECURRENT_PANEL) -> Path:
     """Evaluate ``model`` towards each of ``targets`` (default: the model's own target; a
@@ -297,7 +297,10 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    loaded = Restyler.load(model, direction)
+    loaded = Restyler.load(model, direction or "a2b")
+    if direction is not None and not loaded.direction:  # it would have been ignored
+        raise UserError(f"--direction {direction}: model {loaded.name} has no directions; name the styles to "
+                        f"measure with --target (and --source)")
     source = source or loaded.eval_source
     if not loaded.accepts_source(source):
         raise UserError(f"model {loaded.name} restyles from {loaded.eval_source} in this direction, not from {source}; "

@@ -319,6 +319,10 @@ def test_eval_refuses_an_unknown_target_and_needs_one_for_a_multistyle_model(tmp
     assert main(["eval", "--model", str(tmp_path / "m" / "model.safetensors"), "--out", str(tmp_path / "e")]) == 2
     err = capsys.readouterr().err
     assert "--target" in err and "youthful" in err and "Traceback" not in err
+    # A direction it would ignore: refused, before the minutes of the judges' training.
+    assert main(["eval", "--model", str(tmp_path / "m" / "model.safetensors"), "--target", "elderly", "--direction",
+                 "b2a", "--out", str(tmp_path / "e")]) == 2
+    assert "has no directions" in capsys.readouterr().err
     assert main(["eval", "--model", "normal2exhausted", "--target", "elderly", "--out", str(tmp_path / "e")]) == 2
     assert "not towards 'elderly'" in capsys.readouterr().err
     assert main(["eval", "--model", "normal2exhausted", "--source", "elderly", "--out", str(tmp_path / "e")]) == 2
