@@ -117,13 +117,13 @@ SOFT_REACH = 0.1
 # a leg switched into the IK for a lift of a hundredth of a millimetre still moved its knee
 # by the difference of the two solutions
 FLOOR_LIFT_EASE = 0.5
-# cm above its floor (the ankle: above its standing height) up to which a foot in the air
-# keeps the input's own clearance, less CLEARANCE_SLACK (``_keep_above_floor``). With the
-# floor alone, the lowered pelvis set a landing heel on the floor up to 11 frames before
-# the input's and dragged it there (a held-out walk made exhausted: the ankle at standing
-# height moving 1.5-2 cm a frame where the input's was 1.3-2 cm up), and the output's
-# skating read on its own contacts was 1.45x the input's in walks (real exhausted walks
-# 0.95-1.03x the real normal ones'). Above the band the restyle lowers or lifts a swing freely.
+# cm above its floor (the ankle: above its standing height) around which a foot in the air
+# stops keeping the input's own clearance (``kept_clearance``, ``_keep_above_floor``). With
+# the floor alone, the lowered pelvis set a landing heel on the floor up to 11 frames
+# before the input's and dragged it there (a held-out walk made exhausted: the ankle at
+# standing height moving 1.5-2 cm a frame where the input's was 1.3-2 cm up), and the
+# output's skating read on its own contacts was 1.45x the input's in walks (real exhausted
+# walks 0.95-1.03x the real normal ones'). Higher up the restyle lowers or lifts a swing freely.
 CLEARANCE_BAND = 5.0
 # cm a foot near the floor may go below the input's own (the soft edge's width is
 # FLOOR_MARGIN: within half of it the clearance meets the input's with a smooth corner)
@@ -1158,9 +1158,8 @@ def _keep_above_floor(rows: _Rows) -> None:
     pos = everywhere[0]
     floor, rest = rows.floor[at, None], rows.ankle_rest[at, None]
     own_ankle, own_ball = rows.own[0][at, :, 1], rows.own[1][at, :, 1]
-    ankle_floor = np.maximum(np.minimum(floor + rest, own_ankle),
-                             np.minimum(own_ankle, floor + rest + CLEARANCE_BAND) - CLEARANCE_SLACK)
-    ball_floor = np.maximum(np.minimum(floor, own_ball), np.minimum(own_ball, floor + CLEARANCE_BAND) - CLEARANCE_SLACK)
+    ankle_floor = np.maximum(np.minimum(floor + rest, own_ankle), kept_clearance(own_ankle, floor + rest))
+    ball_floor = np.maximum(np.minimum(floor, own_ball), kept_clearance(own_ball, floor))
     near = free[at] & ((pos[:, :, 2, 1] < ankle_floor + FLOOR_MARGIN) | (pos[:, :, 3, 1] < ball_floor + FLOOR_MARGIN))
     keep = near.any(axis=1)
     at, near, ankle_floor, ball_floor = at[keep], near[keep], ankle_floor[keep], ball_floor[keep]
@@ -1185,6 +1184,17 @@ def _keep_above_floor(rows: _Rows) -> None:
     eased = np.where(lift, np.clip(up / FLOOR_LIFT_EASE, 0.0, 1.0), 0.0)
     weight = np.broadcast_to(eased[:, :, None], solved.shape[:-1])
     rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
+
+
+def kept_clearance(own: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """The height a foot joint in the air may not go below for the input's own height
+    ``own`` over ``base`` (its height standing on the floor): the input's clearance
+    ``own - base``, saturating smoothly at CLEARANCE_BAND (band * tanh(clearance / band)),
+    less CLEARANCE_SLACK. Smoothly: capped with a corner (min(clearance, band)), the floor
+    stopped dead as a lifting foot passed the band, and a held-out walk's shuffling step
+    popped a knee (1.64x the input's largest jerk)."""
+    clearance = np.maximum(own - base, 0.0)
+    return base + CLEARANCE_BAND * np.tanh(clearance / CLEARANCE_BAND) - CLEARANCE_SLACK
 
 
 def _soft_floor(height: np.ndarray, floor: np.ndarray, own: np.ndarray) -> np.ndarray:

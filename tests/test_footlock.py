@@ -11,7 +11,7 @@ import pytest
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import (CLEARANCE_BAND, CLEARANCE_SLACK, FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, PelvisHeight, StanceOffset,
-                                      _hysteresis, leg_chain, plan_locks, push_frames, solve_legs, solve_lock_jobs)
+                                      _hysteresis, kept_clearance, leg_chain, plan_locks, push_frames, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
@@ -571,18 +571,28 @@ def test_a_foot_that_comes_down_onto_the_floor_is_eased_into_the_lift():
     assert np.linalg.norm(np.diff(p_out[:, 1, 1], axis=0), axis=-1).max() < 0.1  # the knee never jumps
 
 
+def test_the_kept_clearance_follows_the_input_near_the_floor_and_saturates_smoothly():
+    base = np.zeros(6)
+    own = np.array([0.0, 0.5, 1.0, CLEARANCE_BAND, 3 * CLEARANCE_BAND, 100.0])
+    kept = kept_clearance(own, base) + CLEARANCE_SLACK
+    assert kept[0] == 0.0 and np.all(np.diff(kept) > 0) and kept[-1] < CLEARANCE_BAND + 1e-9
+    np.testing.assert_allclose(kept[1:3], own[1:3], rtol=0.02)  # near the floor: the input's own
+    # No corner where the band is reached: the slope falls off smoothly (a cap's corner popped a knee).
+    h = np.linspace(0.0, 3 * CLEARANCE_BAND, 3001)
+    slope = np.diff(kept_clearance(h, np.zeros_like(h)))
+    assert np.abs(np.diff(slope)).max() < 2e-5
+
+
 def test_a_foot_in_the_air_near_the_floor_keeps_the_inputs_clearance_and_higher_up_the_restyles():
     """A landing heel the restyle (here a straighter knee) puts on the floor before the
     input's does: with the floor alone it was set down early and dragged there (a
     held-out walk: its ankle at standing height, moving 1.5-2 cm a frame). Near the
-    floor (within CLEARANCE_BAND of the ankle's standing height) it keeps the input's
-    clearance less CLEARANCE_SLACK; higher up a swing is the restyle's own, down to the
-    band."""
+    floor it keeps the input's clearance (``kept_clearance``); well above CLEARANCE_BAND
+    a swing is the restyle's own."""
     n = 60
     roots, q = stepping(1)
     q, roots = np.repeat(q, n, axis=0), np.repeat(roots, n, axis=0)
     upper, lower = (HUMANOID_BONES.index(f"Right{b}") for b in ("UpperLeg", "LowerLeg"))
-    standing = leg_chain(roots, q, SK.offsets)[0][0, 0, 2, 1]  # the left ankle, planted
     heights = {}
     # (hip, knee) of the input's right leg, then of the restyle's: held still in the air
     for name, leg_in, leg_out in (("near", (-0.1, 0.55), (-0.1, 0.3)), ("high", (-0.9, 1.0), (-0.7, 1.0))):
@@ -593,13 +603,16 @@ def test_a_foot_in_the_air_near_the_floor_keeps_the_inputs_clearance_and_higher_
         lock = FootLock(SK, settings=ContactSettings(plant_height=0.5))  # its ball 0.7 cm up: in the air
         assert not lock.push(roots, q)[:, 1].any()  # the right foot is in the air throughout
         new_roots, result = lock.apply(0, roots, q, out)
-        heights[name] = [leg_chain(r, x, SK.offsets)[0][10:, 1, 2, 1] - standing
-                         for r, x in ((roots, q), (roots, out), (new_roots, result))]
-    own, restyled, locked = heights["near"]  # the input's, the restyle's and the lock's, above standing
-    assert 1.0 < own.min() < CLEARANCE_BAND - 1.0 and restyled.max() < 0.0  # the restyle puts it on the floor
-    assert np.all(locked > own - CLEARANCE_SLACK - 0.05) and np.all(locked <= own + 1e-6)
+        chains = [leg_chain(r, x, SK.offsets)[0][10:] for r, x in ((roots, q), (roots, out), (new_roots, result))]
+        standing = chains[0][:, 0, 3, 1].min() + lock._ankle_rest  # the ankle's height standing on the floor
+        heights[name] = [c[:, 1, 2, 1] - standing for c in chains]  # the input's, the restyle's, the lock's
+    own, restyled, locked = heights["near"]
+    # 4.5 cm up, within the band; the restyle takes 3 of them, towards the floor
+    assert 1.0 < own.min() < CLEARANCE_BAND and restyled.max() < own.min() - 3.0
+    assert np.all(locked > kept_clearance(own, 0.0) - 0.05) and np.all(locked <= own + 1e-6)
+    assert locked.min() > restyled.max() + 1.5  # most of the input's clearance back
     own, restyled, locked = heights["high"]
-    assert restyled.min() > CLEARANCE_BAND + 5.0 and own.min() > restyled.max() + 3.0
+    assert restyled.min() > 2 * CLEARANCE_BAND and own.min() > restyled.max() + 3.0
     np.testing.assert_allclose(locked, restyled, atol=1e-6)  # lowered by 3 cm or more, and left there
 
 
