@@ -77,6 +77,8 @@ def test_heading_removal_equals_the_numpy_reference():
 @pytest.mark.parametrize("direction", ["a2b", "b2a"])
 def test_shipped_euler_models_restyle_real_clips_as_the_numpy_path_does(real_words, model, direction):
     restyler = Restyler.load(model, direction)
+    if hasattr(restyler, "with_mix"):  # its default style (normal) is the input as performed
+        restyler = restyler.with_style("elderly:0.7,normal:0.3")
     assert restyler.rep.name == "euler"
     got = restyler.restyle_words(real_words)
     want = restyler.restyle_words_numpy(real_words)
