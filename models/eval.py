@@ -34,7 +34,7 @@ overall and per action:
 * planted-foot slide: horizontal foot speed where the input's foot is planted (output /
   input);
 * skating on the output's own contacts (``metrics.skate_samples``: feet moving while low,
-  wherever the input's were), output / input, stricter than the issue;
+  whatever the input's feet did there), output / input, stricter than the issue;
 * timing sync (correlation of body speed, input vs output);
 * seam ratio (METHOD.md) of the blended output, and of plain 60-frame words for contrast;
 * the travel ceiling (``travel_ceiling``): real target-style clips judged with their root

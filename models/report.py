@@ -231,7 +231,8 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
               "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "")]
     for a, g in m["real_target_jerk_ratio"].items():
         lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |"
-                     + (f" {_num(holds.get(a), 2)} |" if holds else "") + (f" {_num(skates.get(a), 2)} |" if skates else ""))
+                     + (f" {_num(holds.get(a), 2)} |" if holds else "")
+                     + (f" {_num(skates.get(a), 2)} |" if skates else ""))
     lines += travel_ceiling_lines(m)
     lines += ["", "## Seams", "",
               f"Seam ratio of the model under test as plain 60-frame words (the paper's setting, no blend): "

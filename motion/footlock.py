@@ -1144,9 +1144,9 @@ def _keep_above_floor(rows: _Rows) -> None:
     knee its plane) until both clear it (a lift under FLOOR_LIFT_EASE only in part: up to
     1.25 mm short), through a soft edge (``_soft_floor``), never
     higher than the input's own foot there (``own``: its ankles and balls). Near the
-    floor the input's own clearance counts too (``CLEARANCE_BAND``): a heel the input
-    holds 2 cm up as it lands is not put down on the floor early and dragged there. Lifting the
-    ankle rather than pitching the foot up: a foot pointing down needs a large turn for a
+    floor the input's own clearance counts too (``kept_clearance``): a heel the input
+    holds 2 cm up as it lands is not put down on the floor early and dragged there.
+    Lifting the ankle rather than pitching the foot up: a foot pointing down needs a large turn for a
     small lift (measured: an 8-degree pop in one frame). A fully locked foot (weight 1) is
     the input's own, above the floor by definition, and is skipped: most frames of a
     stream."""

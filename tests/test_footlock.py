@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import (CLEARANCE_BAND, CLEARANCE_SLACK, FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, PelvisHeight, StanceOffset,
-                                      _hysteresis, kept_clearance, leg_chain, plan_locks, push_frames, solve_legs, solve_lock_jobs)
+from stylecast.motion.footlock import (CLEARANCE_BAND, CLEARANCE_SLACK, FEET, LEG_INDEX, LEGS, ContactSettings,
+                                      FootLock, PelvisHeight, StanceOffset, _hysteresis, kept_clearance, leg_chain,
+                                      plan_locks, push_frames, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 J = len(HUMANOID_BONES)
