@@ -26,7 +26,7 @@ from stylecast.models.train_multistyle import train_multistyle
 from stylecast.motion.clock import FakeClock
 from stylecast.motion.errors import UserError
 
-from .test_daemon import walk_clip
+from .test_daemon import run_daemon, walk_clip
 from .test_daemon_control import osc, wait_for
 from .test_multistyle import _tiny_cfg, _tiny_words
 
@@ -99,21 +99,10 @@ def test_serve_performer_style_is_checked_before_anything_opens_and_a_pair_model
 
 
 def _served(restyler, **config) -> dict:
-    """Every frame the daemon sends for two replayed walks (virtual clock), per performer."""
-    frames: dict = {}
-
-    def tap(frame):
-        frames.setdefault(frame.performer, []).append(np.concatenate([np.ravel(frame.rotations),
-                                                                      np.ravel(frame.root_position)]))
-
-    sources = [ReplaySource(walk_clip(240, seed=k), name) for k, name in enumerate(("alice", "bob"))]
-    d = Daemon(DaemonConfig(hop=15, control="off", **config), sources, restyler, FakeClock(), frame_taps=[tap],
-               log_status=False)
-    d.start()
-    while not d.finished:
-        d.step()
-    d.close()
-    return {k: np.array(v) for k, v in frames.items()}
+    """Every frame the daemon sends for two performers replaying a walk (virtual clock)."""
+    _, frames = run_daemon(walk_clip(240), restyler, hop=15, performers=2, **config)
+    return {k: np.array([np.concatenate([np.ravel(f.rotations), np.ravel(f.root_position)]) for f in v])
+            for k, v in frames.items()}
 
 
 def _largest_difference(a: dict, b: dict) -> float:

@@ -20,6 +20,7 @@ from stylecast.models.restyler_multistyle import MultiStyleRestyler, code_and_in
 from stylecast.models.styles import STYLES, describe_mix, one_hot, parse_mix
 from stylecast.models.train_multistyle import MultiStyleTrainConfig, MultiStyleTrainer, train_multistyle
 from stylecast.motion.errors import UserError
+from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import FEET, feet_for
 from tests.test_models import synthetic_words
 
@@ -128,10 +129,7 @@ def _restyler(net: MultiStyleConfig = TINY) -> MultiStyleRestyler:
 
 
 def _max_degrees(a: np.ndarray, b: np.ndarray) -> float:
-    from scipy.spatial.transform import Rotation
-
-    turn = Rotation.from_quat(a.reshape(-1, 4)).inv() * Rotation.from_quat(b.reshape(-1, 4))
-    return float(np.degrees(turn.magnitude()).max())
+    return float(rot.angle_between(a, b).max())
 
 
 @each_generator
