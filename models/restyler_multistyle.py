@@ -95,7 +95,9 @@ class MultiStyleRestyler(Restyler):
 
     @property
     def source_style(self) -> str:
-        return "any"
+        """The style the input is taken to be in (``with_performer_style``): any style is
+        accepted, and this one is what the status line and ``restyle`` name as the source."""
+        return self.performer_style
 
     @property
     def eval_source(self) -> str:

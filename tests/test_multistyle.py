@@ -157,6 +157,7 @@ def test_the_performers_own_style_is_the_input_and_its_half_mix_is_half_the_rest
 
 def test_told_another_performer_style_that_style_passes_through_and_normal_is_restyled():
     r, words = _restyler().with_performer_style("elderly"), synthetic_words(3, 2)
+    assert (r.source_style, _restyler().source_style) == ("elderly", "normal")  # what the status line names
     assert _max_degrees(r.for_target("elderly").restyle_words(words), words) < 1e-3
     assert _max_degrees(r.for_target("normal").restyle_words(words), words) > 0.05
     # Each word its own mix, one call: the same as each alone, the performer's share included.
@@ -282,7 +283,7 @@ def test_train_styles_all_and_restyle_with_a_style_and_a_mix(tmp_path, capsys):
                  "--batch-size", "7", "--threads", "1", "--out", str(run), "--no-progress"]) == 0
     assert len((run / "losses.csv").read_text().strip().splitlines()) == 2
     model = str(run / "model.safetensors")
-    for style, shown in (("elderly", "any -> elderly"), ("elderly:0.5,youthful:0.5", "elderly 0.50 + youthful 0.50")):
+    for style, shown in (("elderly", "normal -> elderly"), ("elderly:0.5,youthful:0.5", "elderly 0.50 + youthful 0.50")):
         out = tmp_path / "out.bvh"
         assert main(["restyle", str(CLIP), "-o", str(out), "--model", model, "--style", style, "--threads", "1"]) == 0
         assert shown in capsys.readouterr().out and out.exists()
