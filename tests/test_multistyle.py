@@ -19,8 +19,8 @@ from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler, code_and_intensity
 from stylecast.models.styles import STYLES, describe_mix, one_hot, parse_mix
 from stylecast.models.train_multistyle import MultiStyleTrainConfig, MultiStyleTrainer, train_multistyle
-from stylecast.motion.errors import UserError
 from stylecast.motion import rotations as rot
+from stylecast.motion.errors import UserError
 from stylecast.motion.footlock import FEET, feet_for
 from tests.test_models import synthetic_words
 
@@ -283,7 +283,8 @@ def test_train_styles_all_and_restyle_with_a_style_and_a_mix(tmp_path, capsys):
                  "--batch-size", "7", "--threads", "1", "--out", str(run), "--no-progress"]) == 0
     assert len((run / "losses.csv").read_text().strip().splitlines()) == 2
     model = str(run / "model.safetensors")
-    for style, shown in (("elderly", "normal -> elderly"), ("elderly:0.5,youthful:0.5", "elderly 0.50 + youthful 0.50")):
+    for style, shown in (("elderly", "normal -> elderly"),
+                         ("elderly:0.5,youthful:0.5", "elderly 0.50 + youthful 0.50")):
         out = tmp_path / "out.bvh"
         assert main(["restyle", str(CLIP), "-o", str(out), "--model", model, "--style", style, "--threads", "1"]) == 0
         assert shown in capsys.readouterr().out and out.exists()
