@@ -75,6 +75,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-style", type=float, default=0.0,
                    help="weight of the loss that makes the restyle read as the target among all seven styles "
                         "(a frozen style classifier's cross-entropy); default 0 = off")
+    p.add_argument("--lambda-position-adv", type=float, default=0.0,
+                   help="weight of a second adversarial term: discriminators over the joints' world positions by "
+                        "forward kinematics, what a viewer and the evaluation's judges see (pair models); "
+                        "default 0 = off")
     p.add_argument("--lambda-hold", type=float, default=0.0,
                    help="weight of the loss that keeps a hand or the head still where the input holds it still "
                         "against the hips (pair models); default 0 = off")
@@ -275,6 +279,8 @@ def run_train(args) -> int:
             raise UserError("--action-view is for a pair model; drop it or drop --styles all")
         if args.lambda_hold:
             raise UserError("--lambda-hold is for a pair model; drop it or drop --styles all")
+        if args.lambda_position_adv:
+            raise UserError("--lambda-position-adv is for a pair model; drop it or drop --styles all")
         return run_train_multistyle(args)
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
@@ -282,7 +288,7 @@ def run_train(args) -> int:
                       representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
                       lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
                       lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, hold_from=args.hold_from,
-                      feet=args.feet, mirror=args.mirror,
+                      lambda_position_adv=args.lambda_position_adv, feet=args.feet, mirror=args.mirror,
                       action_view=args.action_view, **_given(ema=args.ema))
     from stylecast.motion.errors import UserError
 
@@ -293,7 +299,8 @@ def run_train(args) -> int:
     if args.style_a == args.style_b:
         raise UserError(f"--style-a and --style-b are both {args.style_a!r}; choose two different styles")
     _non_negative(lambda_gram=args.lambda_gram, lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
-                  lambda_style=args.lambda_style, lambda_hold=args.lambda_hold)
+                  lambda_style=args.lambda_style, lambda_hold=args.lambda_hold,
+                  lambda_position_adv=args.lambda_position_adv)
     if args.hold_from and not 0 < args.hold_from < cfg.epochs:
         raise UserError(f"--hold-from {args.hold_from} leaves no epoch with the hold term in {cfg.epochs} epochs; "
                         f"choose an epoch from 1 to {cfg.epochs - 1}, or raise --epochs")
@@ -310,7 +317,7 @@ def run_train(args) -> int:
 
     styles = (load_style_words(cfg, sets, args.data, args.cache, progress=not args.no_progress)
               if cfg.lambda_style > 0 else None)
-    needs_skeleton = cfg.action_view == "positions" or cfg.lambda_hold > 0
+    needs_skeleton = cfg.action_view == "positions" or cfg.lambda_hold > 0 or cfg.lambda_position_adv > 0
     skeleton = D.bandai_skeleton(D.list_files(args.data)) if needs_skeleton else None
     a, b = sets[(cfg.style_a, "train")], sets[(cfg.style_b, "train")]
     train(cfg, args.out, a.words, b.words, sets[(cfg.style_a, "val")].words, sets[(cfg.style_b, "val")].words,

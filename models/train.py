@@ -41,6 +41,7 @@ from . import losses as L
 from .averaging import WeightAverage
 from .content import ActionLabels, FrozenClassifier, PositionView
 from .holds import HoldTerm
+from .position_critic import PREFIX as CRITICS_PREFIX, PositionCritics
 from .style_target import STYLE_SALT, StyleWords
 from .device import Determinism, pick_device
 from .networks import CycleGAN, NetworkConfig, count_parameters, to_channels
@@ -52,8 +53,8 @@ AVERAGE_PREFIX = "average."  # the weight average's tensors in train_state.safet
 ACTION_VIEWS = ("channels", "positions")  # what the action-content classifier sees (content.py)
 CSV_FIELDS = ("epoch", "seconds", "cpu_seconds", "G_a2b", "G_b2a", "D_a", "D_b", "cycle_a", "cycle_b", "temporal_a",
               "temporal_b", "gram_a2b", "gram_b2a", "overlap_a", "overlap_b", "action_a2b", "action_b2a", "style_a2b",
-              "style_b2a", "hold_a2b", "hold_b2a", "G_total", "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b",
-              "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
+              "style_b2a", "hold_a2b", "hold_b2a", "position_a2b", "position_b2a", "D_positions", "G_total",
+              "val_cycle_a", "val_cycle_b", "val_diff_a", "val_diff_b", "val_smooth_ratio_a2b", "val_smooth_ratio_b2a")
 
 
 @dataclass
@@ -84,6 +85,9 @@ class TrainConfig:
     lambda_style: float = 0.0  # the restyle reads as the target among all styles (style_target.py); 0 = off
     lambda_hold: float = 0.0  # where the input holds a hand or the head still, so does the restyle (holds.py); 0 = off
     hold_from: int = 0  # the epochs before it train without the hold term (a fine-tune of a finished run)
+    # Weight of a second adversarial term, discriminators over the joints' world positions
+    # (position_critic.py); 0 = off.
+    lambda_position_adv: float = 0.0
     # The model written is the generators' weight average (averaging.py) with this decay; 0 =
     # the last weights. Measured over four seeds of the pair recipe (MODEL_CARD.md), the
     # average against each run's own last weights: jerk 1.08-1.14 -> 1.01-1.02, planted-foot
@@ -144,7 +148,7 @@ def model_metadata(cfg: TrainConfig, rep, extra: dict | None = None) -> dict:
         "loss": cfg.loss,
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "coherence": cfg.lambda_coherence,
                     "gram": cfg.lambda_gram, "action": cfg.lambda_action, "style": cfg.lambda_style,
-                    "hold": cfg.lambda_hold},
+                    "hold": cfg.lambda_hold, "position_adv": cfg.lambda_position_adv},
         "hold_from_epoch": cfg.hold_from,
     }
     meta.update(extra or {})
@@ -176,8 +180,8 @@ class Trainer:
         same take (overlapping it by 60 - hop frames), or -1 (``data.next_words``).
         ``actions``: every word's action, needed when ``cfg.lambda_action`` > 0.
         ``styles``: words of every style, needed when ``cfg.lambda_style`` > 0.
-        ``skeleton``: the actors' humanoid skeleton, needed with ``cfg.action_view`` "positions"
-        and with ``cfg.lambda_hold`` > 0."""
+        ``skeleton``: the actors' humanoid skeleton, needed with ``cfg.action_view`` "positions",
+        ``cfg.lambda_hold`` > 0 and ``cfg.lambda_position_adv`` > 0."""
         import torch
 
         if cfg.loss not in L.LOSS_KINDS:
@@ -196,11 +200,18 @@ class Trainer:
             reference = R.mean_reference(np.concatenate([words_a[::3], words_b[::3]]))
         self.model, self.rep = build_model(cfg, reference)
         self.model.to(self.device)
+        self.critics = None
+        if cfg.lambda_position_adv > 0:
+            if skeleton is None:
+                raise UserError("--lambda-position-adv needs the actors' skeleton; train from the dataset folder")
+            self.critics = PositionCritics(cfg.network, self.rep, skeleton, self.device, cfg.seed)
         self.opt_g = torch.optim.Adam(self.model.generators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
-        self.opt_d = torch.optim.Adam(self.model.discriminators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
+        self.opt_d = torch.optim.Adam(self._discriminators(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2))
         self.next_a, self.next_b = next_a, next_b
         self.words_a = torch.from_numpy(self._encode(words_a))
         self.words_b = torch.from_numpy(self._encode(words_b))
+        if self.critics is not None:  # the real words' positions, once for the run
+            self.positions = tuple(self.critics.positions(to_channels(w)) for w in (self.words_a, self.words_b))
         self.val_a = None if val_a is None or len(val_a) == 0 else self._encode(val_a[: cfg.val_words])
         self.val_b = None if val_b is None or len(val_b) == 0 else self._encode(val_b[: cfg.val_words])
         self.epoch = 0  # epochs completed
@@ -258,6 +269,12 @@ class Trainer:
         self.style_targets = tuple(torch.tensor(styles.classes.index(s), device=self.device)
                                    for s in (cfg.style_b, cfg.style_a))
 
+    def _discriminators(self) -> list:
+        """Every discriminator's parameters (one optimiser): the paper's two, and the position
+        critics' when they train."""
+        extra = list(self.critics.parameters()) if self.critics is not None else []
+        return self.model.discriminators() + extra
+
     def _channels(self, words):
         """Channel words (N, F, T) on the CPU from quaternion words or encoded tensors."""
         import torch
@@ -265,12 +282,14 @@ class Trainer:
         return to_channels(words if torch.is_tensor(words) else torch.from_numpy(self._encode(words)))
 
     # -- one step ---------------------------------------------------------------------
-    def step(self, a, b, a_next=None, b_next=None, a_actions=None, b_actions=None) -> dict[str, float]:
+    def step(self, a, b, a_next=None, b_next=None, a_actions=None, b_actions=None,
+             positions=None) -> dict[str, float]:
         """One update. ``a_next``/``b_next``: (rows, next words) pairs, the word after each
         of those rows of ``a``/``b`` in the same take (for the overlap loss), or None.
-        ``a_actions``/``b_actions``: the words' actions (for the content loss), or None."""
+        ``a_actions``/``b_actions``: the words' actions (for the content loss), or None.
+        ``positions``: the joint positions of ``a`` and ``b`` (for the position critics), or None."""
         m, cfg = self.model, self.cfg
-        for p in m.discriminators():
+        for p in self._discriminators():
             p.requires_grad_(False)
         fake_b = m.G_a2b(a)
         fake_a = m.G_b2a(b)
@@ -309,17 +328,29 @@ class Trainer:
                 extras[name] = loss.item()
             else:
                 extras[name] = 0.0
+        extras["position_a2b"] = extras["position_b2a"] = 0.0
+        if self.critics is not None:
+            adv_a2b, adv_b2a, *fake_positions = self.critics.generator_losses(fake_b, fake_a)
+            total = total + cfg.lambda_position_adv * (adv_a2b + adv_b2a)
+            extras["position_a2b"], extras["position_b2a"] = adv_a2b.item(), adv_b2a.item()
         self.opt_g.zero_grad(set_to_none=True)
         total.backward()
         self.opt_g.step()
         if self.average is not None:
             self.average.update(m)
-        for p in m.discriminators():
+        for p in self._discriminators():
             p.requires_grad_(True)
         d_a = L.discriminator_loss(m.D_a(a), m.D_a(fake_a.detach()))
         d_b = L.discriminator_loss(m.D_b(b), m.D_b(fake_b.detach()))
+        d_total = d_a + d_b
+        if self.critics is not None:
+            d_positions = self.critics.loss(*positions, *fake_positions[::-1])
+            d_total = d_total + d_positions
+            extras["D_positions"] = d_positions.item()
+        else:
+            extras["D_positions"] = 0.0
         self.opt_d.zero_grad(set_to_none=True)
-        (d_a + d_b).backward()
+        d_total.backward()
         self.opt_d.step()
         return {"G_a2b": g.adv_a2b.item(), "G_b2a": g.adv_b2a.item(), "D_a": d_a.item(), "D_b": d_b.item(),
                 "cycle_a": g.cycle_a.item(), "cycle_b": g.cycle_b.item(), "temporal_a": g.temporal_a.item(),
@@ -345,6 +376,12 @@ class Trainer:
             return None, None
         return self.actions[0][ia].to(self.device), self.actions[1][ib].to(self.device)
 
+    def _positions(self, ia, ib):
+        """The batch's real joint positions for the position critics, or None when they are off."""
+        if self.critics is None:
+            return None
+        return self.positions[0][ia].to(self.device), self.positions[1][ib].to(self.device)
+
     def run_epoch(self, progress=None) -> dict[str, float]:
         cfg = self.cfg
         self.model.train()
@@ -356,7 +393,7 @@ class Trainer:
             with self.determinism.watch():
                 out = self.step(self._to(self.words_a[ia]), self._to(self.words_b[ib]),
                                 self._next(self.next_a, self.words_a, ia), self._next(self.next_b, self.words_b, ib),
-                                *self._actions(ia, ib))
+                                *self._actions(ia, ib), self._positions(ia, ib))
             for k, v in out.items():
                 sums[k] = sums.get(k, 0.0) + v
             if progress is not None:
@@ -402,7 +439,9 @@ class Trainer:
     def model_tensors(self, generators_only: bool = False) -> dict:
         sd = self.model.state_dict()
         if generators_only:
-            sd = {k: v for k, v in sd.items() if k.startswith(GENERATOR_PREFIXES)}
+            return {k: v for k, v in sd.items() if k.startswith(GENERATOR_PREFIXES)}
+        if self.critics is not None:
+            sd.update({CRITICS_PREFIX + k: v for k, v in self.critics.state_dict().items()})
         return sd
 
     def save(self, out: Path, metrics: dict | None = None) -> None:
@@ -412,6 +451,11 @@ class Trainer:
 
     def load_state(self, out: Path) -> None:
         read_train_state(out, self, TrainConfig, ("G_", "D_"))
+        if self.critics is not None:
+            path = out / "checkpoint.safetensors"
+            tensors, _ = ckpt.read_checkpoint(path)
+            mine = {k[len(CRITICS_PREFIX):]: v for k, v in tensors.items() if k.startswith(CRITICS_PREFIX)}
+            self.critics.load_state_dict(ckpt.check_shapes(path, self.critics, mine, ("D_",)))
 
 
 OPTIMISERS = ("opt_g", "opt_d")  # the trainers' attribute names
