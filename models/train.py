@@ -328,9 +328,9 @@ class Trainer:
                 extras[name] = loss.item()
             else:
                 extras[name] = 0.0
-        extras["position_a2b"] = extras["position_b2a"] = 0.0
+        extras["position_a2b"] = extras["position_b2a"] = extras["D_positions"] = 0.0
         if self.critics is not None:
-            adv_a2b, adv_b2a, *fake_positions = self.critics.generator_losses(fake_b, fake_a)
+            adv_a2b, adv_b2a, fake_b_positions, fake_a_positions = self.critics.generator_losses(fake_b, fake_a)
             total = total + cfg.lambda_position_adv * (adv_a2b + adv_b2a)
             extras["position_a2b"], extras["position_b2a"] = adv_a2b.item(), adv_b2a.item()
         self.opt_g.zero_grad(set_to_none=True)
@@ -344,11 +344,9 @@ class Trainer:
         d_b = L.discriminator_loss(m.D_b(b), m.D_b(fake_b.detach()))
         d_total = d_a + d_b
         if self.critics is not None:
-            d_positions = self.critics.loss(*positions, *fake_positions[::-1])
+            d_positions = self.critics.loss(*positions, fake_a_positions, fake_b_positions)
             d_total = d_total + d_positions
             extras["D_positions"] = d_positions.item()
-        else:
-            extras["D_positions"] = 0.0
         self.opt_d.zero_grad(set_to_none=True)
         d_total.backward()
         self.opt_d.step()
