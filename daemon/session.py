@@ -36,6 +36,7 @@ from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, plan_locks, push_frames, solve_lock_jobs
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
+from stylecast.motion.hinges import keep_hinges
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
 from stylecast.motion.words import (BlendSettings, SeamBlender, WordCutter, plan_frames, planned_mix,
                                    render_planned)
@@ -85,9 +86,9 @@ def push_feet(sessions: list) -> None:
 
 def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> None:
     """The rest of one new frame of each session, each stage one vectorised pass over all
-    of them: the seam blender's plan and render, the correction low-pass, then the foot
-    lock and the pelvis height. Sets each pending frame's ``runs`` and ``lock`` (its
-    solved job)."""
+    of them: the seam blender's plan and render, the correction low-pass, the elbows and
+    knees kept to their hinges (``hinges.keep_hinges``), then the foot lock and the pelvis
+    height. Sets each pending frame's ``runs`` and ``lock`` (its solved job)."""
     if not pending:
         return
     planned = plan_frames([(s.blender, p.index, p.input_rotations, p.intensity, p.active)
@@ -96,7 +97,7 @@ def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> Non
         frame.runs = runs
     inputs = np.stack([p.input_rotations for p in pending])
     blended = render_planned([(s.blender, p.runs, inputs[k:k + 1]) for k, (s, p) in enumerate(zip(sessions, pending))])
-    smoothed = filter_frames([s.smoothing for s in sessions], inputs, np.concatenate(blended))
+    smoothed = keep_hinges(inputs, filter_frames([s.smoothing for s in sessions], inputs, np.concatenate(blended)))
     jobs = plan_locks([(s.feet, p.index, p.input_root, p.input_rotations, smoothed[k], planned_mix(p.runs, 1))
                        for k, (s, p) in enumerate(zip(sessions, pending))])
     for frame, job in zip(pending, jobs):

@@ -48,6 +48,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import rotations as rot
+from .hinges import keep_hinges
 from .smoothing import CORRECTION_TAU, CorrectionFilter
 
 WORD_LENGTH = 60
@@ -444,10 +445,11 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     (repeated) until a word covers the final real frame, exactly as the daemon holds a
     stalled source. ``restyle_words`` maps words (B, 60, J, 4) to restyled words of the
     same shape; batching does not change the result because words are independent.
-    The blended output's correction is low-passed (``smoothing.CorrectionFilter``), then
-    ``feet``, a ``footlock.FootLock`` (with the clip's root positions ``roots`` (T, 3)),
-    keeps planted feet where the input put them and sets the pelvis height: the daemon's
-    order, frame by frame.
+    The blended output's correction is low-passed (``smoothing.CorrectionFilter``), its
+    elbows and knees kept to their hinges (``hinges.keep_hinges``), then ``feet``, a
+    ``footlock.FootLock`` (with the clip's root positions ``roots`` (T, 3)), keeps planted
+    feet where the input put them and sets the pelvis height: the daemon's order, frame
+    by frame.
     """
     T, J = rotations.shape[:2]
     blender = SeamBlender(settings, J)
@@ -458,6 +460,7 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
         blender.add_words(ends[i:i + batch], restyle_words(words[i:i + batch]))
     runs = blender.plan_block(0, rotations, intensity)
     out = CorrectionFilter(J, settings.correction_tau).apply(rotations, render_planned([(blender, runs, rotations)])[0])
+    out = keep_hinges(rotations, out)
     if feet is None:
         return Restyled(out, roots)
     # The daemon holds an ended source's last frame for at least ``delay`` >= ramp frames.

@@ -1,0 +1,107 @@
+"""Elbows and knees stay hinges (motion/hinges.py): on real Bandai motion, on known-bad
+restyles, and through the stream code `restyle` and `serve` share."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stylecast.motion import rotations as rot
+from stylecast.motion.bvh import read_bvh
+from stylecast.motion.hinges import HINGES, _swing_twist, keep_hinges
+from stylecast.motion.humanoid import HUMANOID_BONES, Retarget
+from stylecast.motion.resample import resample
+
+HINGE_BONES = {h.bone for h in HINGES}
+
+
+@pytest.fixture(scope="module")
+def walk(bandai_root) -> np.ndarray:
+    """A held-out normal walk as humanoid rotations at 60 fps."""
+    clip = read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_walk_normal_001.bvh.gz")
+    return resample(Retarget.for_clip(clip).to_humanoid(clip), 60.0).rotations.astype(np.float64)
+
+
+def parts(q: np.ndarray, hinge) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(flexion, sideways bend, twist) of a hinge bone's rotations (T, 4), in degrees."""
+    swing, twist = _swing_twist(q, hinge.axis)
+    side = 3 - hinge.axis - hinge.flexion
+    angle = np.degrees(2 * np.arctan2(twist[:, hinge.axis], twist[:, 3]))
+    return np.degrees(swing[:, hinge.flexion]), np.degrees(swing[:, side]), angle
+
+
+def turned(q: np.ndarray, bone: str, axis: int, degrees: float) -> np.ndarray:
+    """``q`` with one bone turned by ``degrees`` about a local axis, on top of its rotation."""
+    out = q.copy()
+    j = HUMANOID_BONES.index(bone)
+    v = np.zeros(3)
+    v[axis] = np.radians(degrees)
+    out[:, j] = rot.multiply(rot.exp_map(np.broadcast_to(v, out[:, j, :3].shape)), out[:, j])
+    return out
+
+
+def test_the_data_s_elbows_and_knees_are_hinges(walk):
+    for hinge in HINGES:
+        flexion, side, twist = parts(walk[:, HUMANOID_BONES.index(hinge.bone)], hinge)
+        assert np.abs(side).max() < 0.5, hinge.bone
+        assert np.all(hinge.bent * flexion > -0.5), hinge.bone  # never past straight
+        if not hinge.twists:
+            assert np.abs(twist).max() < 1.0, hinge.bone
+
+
+def test_real_motion_passes_unchanged(walk):
+    assert rot.angle_between(keep_hinges(walk, walk), walk).max() < 1e-9
+
+
+def test_a_sideways_bend_and_a_knee_twist_are_taken_out_and_the_flexion_kept(walk):
+    bad = turned(walk, "LeftLowerArm", 2, 10.0)  # elbow bent sideways
+    bad = turned(bad, "RightLowerLeg", 1, 8.0)  # knee twisted
+    bad = turned(bad, "RightLowerLeg", 2, -6.0)  # ... and bent sideways
+    bad = turned(bad, "RightLowerArm", 1, 12.0)  # more elbow flexion: allowed
+    fixed = keep_hinges(walk, bad)
+    for hinge in HINGES:
+        j = HUMANOID_BONES.index(hinge.bone)
+        flex_in, side_in, twist_in = parts(walk[:, j], hinge)
+        flex_bad, _, twist_bad = parts(bad[:, j], hinge)
+        flex, side, twist = parts(fixed[:, j], hinge)
+        np.testing.assert_allclose(side, side_in, atol=1e-6, err_msg=hinge.bone)
+        np.testing.assert_allclose(twist, twist_bad if hinge.twists else twist_in, atol=1e-6, err_msg=hinge.bone)
+        bent = hinge.bent * flex_bad > 0
+        np.testing.assert_allclose(flex[bent], flex_bad[bent], atol=1e-6, err_msg=hinge.bone)
+    right_elbow = HUMANOID_BONES.index("RightLowerArm")
+    assert rot.angle_between(fixed[:, right_elbow], bad[:, right_elbow]).max() < 0.01  # a flexion of 12 degrees stays
+    others = [j for j, b in enumerate(HUMANOID_BONES) if b not in HINGE_BONES]
+    assert np.array_equal(fixed[:, others], bad[:, others])
+
+
+def test_a_joint_bent_past_straight_stops_at_straight_or_at_the_input(walk):
+    hinge = next(h for h in HINGES if h.bone == "LeftLowerLeg")
+    j = HUMANOID_BONES.index(hinge.bone)
+    straight = walk.copy()
+    straight[:, j] = rot.identity((len(walk),))
+    past = turned(straight, hinge.bone, hinge.flexion, -hinge.bent * 7.0)
+    flexion, _, _ = parts(keep_hinges(straight, past)[:, j], hinge)
+    assert np.abs(flexion).max() < 1e-9
+    # An input already past straight by 3 degrees: the restyle may not take it further.
+    over = turned(straight, hinge.bone, hinge.flexion, -hinge.bent * 3.0)
+    flexion, _, _ = parts(keep_hinges(over, past)[:, j], hinge)
+    np.testing.assert_allclose(flexion, -hinge.bent * 3.0, atol=1e-6)
+
+
+def test_the_stream_keeps_a_restyle_s_elbows_on_their_hinge(walk):
+    from stylecast.models.restyle import restyle_rotations
+
+    def bends_elbows_sideways(words):
+        return turned(words.reshape(-1, *words.shape[2:]), "LeftLowerArm", 2, 15.0).reshape(words.shape)
+
+    out = restyle_rotations(walk, bends_elbows_sideways).rotations
+    hinge = next(h for h in HINGES if h.bone == "LeftLowerArm")
+    _, side, _ = parts(out[:, HUMANOID_BONES.index(hinge.bone)], hinge)
+    _, side_in, _ = parts(walk[:, HUMANOID_BONES.index(hinge.bone)], hinge)
+    assert np.abs(side - side_in).max() < 1e-6
+
+
+def test_another_skeleton_passes_unchanged():
+    q = rot.exp_map(np.random.default_rng(0).normal(size=(5, 7, 3)))
+    out = rot.exp_map(np.random.default_rng(1).normal(size=(5, 7, 3)))
+    assert np.array_equal(keep_hinges(q, out), out)
