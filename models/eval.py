@@ -193,7 +193,8 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
             "skate_in": M.skate_samples(p_in), "skate_out": M.skate_samples(p_out),
             "hold_in": M.hold_samples(p_in, held), "hold_out": M.hold_samples(p_out, held),
             "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
-            "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out)}
+            "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out),
+            "hinge_in": M.off_hinge(inp), "hinge_out": M.off_hinge(out)}
 
 
 def _mean_ratio(out: np.ndarray, inp: np.ndarray) -> float:
@@ -240,6 +241,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
     sync = [c["sync"] for c in per_clip if np.isfinite(c["sync"])]
     sink = np.concatenate([c["penetration"] for c in per_clip])
     peaks = [c["peak_jerk_ratio"] for c in per_clip]
+    hinge_in = np.concatenate([c["hinge_in"] for c in per_clip])
+    hinge_out = np.concatenate([c["hinge_out"] for c in per_clip])
     return {
         "windows": int(pred.shape[1]),
         "judged_target": float(np.mean(style_by_judge)) if style_by_judge else float("nan"),
@@ -269,6 +272,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "timing_sync": float(np.mean(sync)) if sync else float("nan"),
         "floor_penetration_cm": float(sink.mean()) if sink.size else float("nan"),
         "floor_penetration_p99_cm": float(np.percentile(sink, 99)) if sink.size else float("nan"),
+        "off_hinge_p99_deg": float(np.percentile(hinge_out, 99)) if hinge_out.size else float("nan"),
+        "off_hinge_input_p99_deg": float(np.percentile(hinge_in, 99)) if hinge_in.size else float("nan"),
     }
 
 

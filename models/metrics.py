@@ -23,6 +23,12 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   joint goes in the input (the input's floor contact), per frame.
 * timing sync: Pearson correlation of per-frame body speed (mean over joints of speed
   relative to the hips, so the shared root path cannot inflate it), input vs output.
+* off the hinge (``off_hinge``): how far an elbow or knee of a pose is from one a hinge can
+  make (``motion.hinges``: the data's elbows and knees bend about one axis, one way),
+  measured on the bone's own axes, apart from the fixer's swing-twist split: a lower
+  arm's direction out of the plane it flexes in, a lower leg's flexion axis turned off
+  itself (a sideways bend or a twist), and either bent past straight. Degrees per frame,
+  the worst hinge bone's.
 * Frechet distance between two sets of feature vectors (Gaussian fit), as in FID and
   seed 003's motion FID.
 * travel speed (``travel_speed``, ``with_travel_speed``): the root's mean horizontal speed,
@@ -72,6 +78,29 @@ def world_positions(rotations: np.ndarray, roots: np.ndarray, skeleton) -> np.nd
 def jerk(positions: np.ndarray) -> np.ndarray:
     """(T, J, 3) -> (T-3, J) magnitude of the third difference."""
     return np.linalg.norm(np.diff(positions, n=3, axis=0), axis=-1)
+
+
+def off_hinge(rotations: np.ndarray) -> np.ndarray:
+    """Humanoid local rotations (T, J, 4) -> (T,) degrees the worst elbow or knee of each
+    frame is off its hinge (the module docstring): 0 for any pose the data's joints make."""
+    from scipy.spatial.transform import Rotation
+
+    from stylecast.motion.hinges import HINGES
+
+    q = np.asarray(rotations, np.float64)
+    worst = np.zeros(len(q))
+    for hinge in HINGES:
+        r = Rotation.from_quat(q[:, HUMANOID_BONES.index(hinge.bone)])
+        bone, flex = np.eye(3)[hinge.axis], np.eye(3)[hinge.flexion]
+        if hinge.twists:  # the bone may turn about itself: only its direction is bound
+            sideways = np.arcsin(np.clip(np.abs(r.apply(bone) @ flex), 0.0, 1.0))
+        else:  # nothing but the flexion: its axis must stay where it is
+            sideways = np.arccos(np.clip(r.apply(flex) @ flex, -1.0, 1.0))
+        pointing = r.apply(bone)
+        bend = np.arctan2(np.cross(bone, pointing) @ flex, pointing @ bone)
+        past_straight = np.maximum(-hinge.bent * bend, 0.0)
+        worst = np.maximum(worst, np.degrees(np.maximum(sideways, past_straight)))
+    return worst
 
 
 def peak_jerk_ratio(jerk_in: np.ndarray, jerk_out: np.ndarray) -> float:

@@ -31,6 +31,10 @@ GOALS = (
     # the output's speed there over the input's. Absent from reports before it.
     ("held hands and head: speed / input's where the input holds still (stricter than the issue)",
      "hold_ratio", lambda v, m: v <= 1.5, "<= 1.5"),
+    # Stricter than the issue (metrics.off_hinge): elbows and knees bent sideways or past
+    # straight, which the data's never are. Absent from reports before it.
+    ("elbows and knees off their hinge, p99 degrees beyond the input's (stricter than the issue)",
+     "off_hinge_excess", lambda v, m: v <= 1.0, "<= 1"),
     ("timing sync", "timing_sync", lambda v, m: v >= 0.8, ">= 0.8"),
     ("seam ratio / input's on the same grid", "seam_ratio_relative", lambda v, m: v <= 1.02, "<= 1.02"),
     ("FMD / real-vs-real floor, worst judge", "fmd_ratio", lambda v, m: v <= 2.0, "<= 2"),
@@ -74,6 +78,8 @@ def goal_values(overall: dict, floors: list[float]) -> dict:
         values["action_kept_short"] = min(overall["action_kept_short_judges"])
     if overall.get("judged_target_dynamics_judges"):
         values["judged_target_dynamics"] = min(overall["judged_target_dynamics_judges"])
+    if "off_hinge_p99_deg" in overall:
+        values["off_hinge_excess"] = overall["off_hinge_p99_deg"] - overall["off_hinge_input_p99_deg"]
     if "peak_jerk_ratio" in overall:  # (reports written before it have none)
         values["peak_jerk_ratio"] = overall["peak_jerk_ratio"]
     return values
@@ -177,8 +183,8 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                   "jerk hands | jerk feet | largest one-frame jerk / input's, worst clip (median) | "
                   "slide cm/frame (ratio) | skating, own contacts, cm/frame (ratio) | "
                   "held hands and head cm/frame (ratio) | feet below floor mean / p99 cm | "
-                  "sync | seam (/ input's) | judged target, dynamics |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "elbows and knees off hinge, p99 deg | sync | seam (/ input's) | judged target, dynamics |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for name, r in res.items():
             o = r[setting]["overall"]
             jr = o["jerk_ratio"]
@@ -192,6 +198,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                          f"{_num(o.get('skate_cm_per_frame'), 3)} ({_num(o.get('skate_ratio'), 2)}) | "
                          f"{_num(o.get('hold_cm_per_frame'), 3)} ({_num(o.get('hold_ratio'), 2)}) | "
                          f"{_num(o['floor_penetration_cm'], 2)} / {_num(o['floor_penetration_p99_cm'], 1)} | "
+                         f"{_num(o.get('off_hinge_p99_deg', float('nan')), 2)} | "
                          f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
                          f"({_num(o['seam_ratio_relative'], 3)}) | {_range(o.get('judged_target_dynamics_judges', []), _pct)} |")
     lines += ["", "Variants: " + "; ".join(f"`{k}`: {v['note']}" for k, v in res.items()) + ".", "",

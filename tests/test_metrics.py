@@ -410,3 +410,70 @@ def test_a_held_hand_that_drifts_fails_the_hold_measure_though_jerk_cannot_see_i
     assert ratio > 1.5  # the report's goal, with the head and the other hand held still beside it
     jerk_ratio = M.group_means(M.jerk(drifting))["all"] / M.group_means(M.jerk(p_in))["all"]
     assert abs(jerk_ratio - 1) < 0.01
+
+
+def hinged_pose(frames: int = 50) -> np.ndarray:
+    """Rotations of a humanoid whose elbows and knees bend as hinges do (``motion.hinges``):
+    each lower arm twisted about its bone and flexed, each knee flexed, by varying angles;
+    the other bones turned freely."""
+    from stylecast.motion.hinges import HINGES
+
+    q, _ = smooth_motion(frames)
+    wave = np.radians(40 + 30 * np.sin(np.linspace(0, 3, frames)))
+    for hinge in HINGES:
+        flex = np.zeros((frames, 3))
+        flex[:, hinge.flexion] = hinge.bent * wave
+        twist = np.zeros((frames, 3))
+        twist[:, hinge.axis] = 0.5 * wave if hinge.twists else 0.0
+        q[:, HUMANOID_BONES.index(hinge.bone)] = rot.multiply(rot.exp_map(flex), rot.exp_map(twist))
+    return q
+
+
+def test_off_hinge_reads_a_sideways_elbow_a_twisted_knee_and_a_joint_past_straight():
+    """Known-bad cases of ``off_hinge``, each read at its size in degrees; a hinge's own
+    poses (flexed and a forearm twisted) read nothing."""
+    from stylecast.motion.hinges import HINGES
+
+    q = hinged_pose()
+    assert M.off_hinge(q).max() < 1e-6
+    by_bone = {h.bone: h for h in HINGES}
+    # An elbow bent sideways: its forearm tilted 10 degrees out of the plane it flexes in.
+    elbow = by_bone["LeftLowerArm"]
+    j = HUMANOID_BONES.index(elbow.bone)
+    pointing = rot.apply(q[:, j], np.broadcast_to(np.eye(3)[elbow.axis], (len(q), 3)))
+    out_of_plane = np.cross(pointing, np.eye(3)[elbow.flexion])
+    out_of_plane /= np.linalg.norm(out_of_plane, axis=1, keepdims=True)
+    bad = q.copy()
+    bad[:, j] = rot.multiply(rot.exp_map(np.radians(10.0) * out_of_plane), q[:, j])
+    np.testing.assert_allclose(M.off_hinge(bad), 10.0, atol=1e-6)
+    for bone, axis, degrees in (("RightLowerLeg", 1, 6.0),  # a knee twisted
+                                ("LeftLowerLeg", 2, 8.0)):  # ... and bent sideways
+        bad = q.copy()
+        j = HUMANOID_BONES.index(bone)
+        v = np.zeros(3)
+        v[axis] = np.radians(degrees)
+        bad[:, j] = rot.multiply(bad[:, j], rot.exp_map(np.broadcast_to(v, (len(q), 3))))
+        np.testing.assert_allclose(M.off_hinge(bad), degrees, atol=1e-6, err_msg=bone)
+    straight = q.copy()
+    for bone in ("RightLowerArm", "RightLowerLeg"):  # straight, then 5 degrees past it
+        hinge = by_bone[bone]
+        v = np.zeros(3)
+        v[hinge.flexion] = -hinge.bent * np.radians(5.0)
+        straight[:, HUMANOID_BONES.index(bone)] = rot.exp_map(np.broadcast_to(v, (len(q), 3)))
+        np.testing.assert_allclose(M.off_hinge(straight), 5.0, atol=1e-6, err_msg=bone)
+        straight[:, HUMANOID_BONES.index(bone)] = q[:, HUMANOID_BONES.index(bone)]
+
+
+def test_the_hinge_goal_is_read_beyond_the_input_s_own(tmp_path):
+    from stylecast.models.eval import _summarise
+    from stylecast.models.report import goal_values, goals_met
+
+    q, roots = smooth_motion()
+    q = hinged_pose(len(q))
+    bent = jittered(q, 3.0)  # every bone a few degrees off, the hinges too
+    clips = [_clip_measures(q, out, roots, roots.copy(), humanoid_skeleton_default()) for out in (q.copy(), bent)]
+    for clip, met in zip(clips, (True, False)):
+        overall = _summarise([clip], [np.zeros((1, 4), int)], [np.zeros((1, 4), int)], [0], 0, ["a"], ["x"])
+        overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0])
+        assert (goal_values(overall, [1.0])["off_hinge_excess"] <= 1.0) == met
+        assert goals_met(overall, [1.0])["off_hinge_excess"] == met
