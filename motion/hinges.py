@@ -41,36 +41,63 @@ HINGES = (Hinge("LeftLowerArm", 0, 1, -1.0, True), Hinge("RightLowerArm", 0, 1, 
           Hinge("LeftLowerLeg", 1, 0, 1.0, False), Hinge("RightLowerLeg", 1, 0, 1.0, False))
 
 
-def _swing_twist(q: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+def _swing_twist(q: np.ndarray, axis) -> tuple[np.ndarray, np.ndarray]:
     """q (..., 4) xyzw -> (swing as a rotation vector (..., 3), perpendicular to the axis;
-    the twist about the axis (..., 4)), q = exp(swing) * twist."""
-    twist = np.zeros_like(q)
-    twist[..., axis] = q[..., axis]
-    twist[..., 3] = q[..., 3]
+    the twist about the axis (..., 4)), q = exp(swing) * twist. ``axis``: an index, or a
+    one-hot (..., 3) per rotation (every hinge bone in one pass)."""
+    along = np.eye(3)[axis] if np.isscalar(axis) else np.asarray(axis, np.float64)
+    twist = q * np.concatenate([along, np.ones((*along.shape[:-1], 1))], axis=-1)
     norm = np.linalg.norm(twist, axis=-1, keepdims=True)
-    # A rotation by 180 degrees about a perpendicular axis has no twist to speak of.
-    twist = np.where(norm > 1e-12, twist / np.maximum(norm, 1e-12), rot.identity(q.shape[:-1]))
-    swing = rot.log_map(rot.multiply(q, rot.inverse(twist)))
-    swing[..., axis] = 0.0  # it is, to rounding
-    return swing, twist
+    twist = twist / np.maximum(norm, 1e-12)
+    if np.any(norm <= 1e-12):  # 180 degrees about a perpendicular axis: no twist to speak of
+        twist = np.where(norm > 1e-12, twist, rot.identity(q.shape[:-1]))
+    # q * twist^-1 (twist is a unit quaternion: its inverse is its conjugate)
+    swing = rot.log_map(rot.multiply(q, twist * _CONJUGATE))
+    return swing * (1.0 - along), twist  # perpendicular to the axis, to rounding
+
+
+_CONJUGATE = np.array([-1.0, -1.0, -1.0, 1.0])
+
+
+class _Table(NamedTuple):
+    """``HINGES`` as arrays over the hinge bones, for one vectorised pass."""
+
+    joints: list[int]
+    axis: np.ndarray  # (H, 3) one-hot
+    flexion: np.ndarray  # (H, 3) one-hot
+    bent: np.ndarray  # (H,)
+    twists: np.ndarray  # (H, 1) bool
+
+    @classmethod
+    def of(cls, hinges, bones) -> "_Table":
+        eye = np.eye(3)
+        return cls([bones.index(h.bone) for h in hinges], eye[[h.axis for h in hinges]],
+                   eye[[h.flexion for h in hinges]], np.array([h.bent for h in hinges]),
+                   np.array([[h.twists] for h in hinges]))
+
+
+_TABLE = _Table.of(HINGES, HUMANOID_BONES)
 
 
 def keep_hinges(inputs: np.ndarray, outputs: np.ndarray, hinges=HINGES, bones=HUMANOID_BONES) -> np.ndarray:
     """Humanoid rotations (..., J, 4): the inputs and the restyle's outputs -> the outputs
     with each hinge bone keeping only the flexion (and a forearm's twist) of the restyle.
-    Rotations of another skeleton (the tests' small synthetic streams) pass unchanged."""
+    Rotations of another skeleton (the tests' small synthetic streams) pass unchanged.
+    Every hinge bone in one pass, inputs and outputs together: bone by bone it cost 0.77 ms
+    a call for one frame (numpy's per-call cost; the daemon's tick makes one call), this
+    0.36 ms (measured beside a running evaluation on the other core)."""
     inputs = np.asarray(inputs, dtype=np.float64)
     out = np.array(outputs, dtype=np.float64)
     if inputs.shape[-2] != len(bones):
         return out
-    for hinge in hinges:
-        j = bones.index(hinge.bone)
-        swing_in, twist_in = _swing_twist(inputs[..., j, :], hinge.axis)
-        swing_out, twist_out = _swing_twist(out[..., j, :], hinge.axis)
-        swing = swing_in.copy()  # the sideways bend: the input's
-        bend_in = hinge.bent * swing_in[..., hinge.flexion]
-        bend = np.maximum(hinge.bent * swing_out[..., hinge.flexion], np.minimum(bend_in, 0.0))
-        swing[..., hinge.flexion] = hinge.bent * bend
-        q = rot.multiply(rot.exp_map(swing), twist_out if hinge.twists else twist_in)
-        out[..., j, :] = np.where(np.sum(q * out[..., j, :], axis=-1, keepdims=True) < 0, -q, q)
+    table = _TABLE if (hinges, bones) == (HINGES, HUMANOID_BONES) else _Table.of(hinges, bones)
+    before = out[..., table.joints, :]
+    (swing_in, swing_out), (twist_in, twist_out) = _swing_twist(np.stack([inputs[..., table.joints, :], before]),
+                                                                table.axis)
+    bend_in = table.bent * np.sum(swing_in * table.flexion, axis=-1)
+    bend = np.maximum(table.bent * np.sum(swing_out * table.flexion, axis=-1), np.minimum(bend_in, 0.0))
+    # The sideways bend the input's, the flexion the restyle's (not past straight).
+    swing = swing_in * (1.0 - table.flexion) + (table.bent * bend)[..., None] * table.flexion
+    q = rot.multiply(rot.exp_map(swing), np.where(table.twists, twist_out, twist_in))
+    out[..., table.joints, :] = np.where(np.sum(q * before, axis=-1, keepdims=True) < 0, -q, q)
     return out
