@@ -247,7 +247,10 @@ def _padded_frame_index(length: int, pad: int, count: int, mode: str, device: to
 
 class RowConv1d(nn.Conv1d):
     """A ``Conv1d`` as matrix products over rows of frames: MKL's matrix product rounds
-    each row alike for any row count and thread count.
+    each row alike for any row count and thread count, at the generators' widths (66 to
+    192 columns; with as few as 7 output columns, MKL's AVX2 kernels on an AMD EPYC
+    rounded a row differently with where the rows start in memory, which shifted taps
+    change: ``tests/test_batch_invariance.py`` checks the shipped models themselves).
 
     How, and why this way: the words' frames become rows ((B, T, C), padded), and each
     kernel tap is one product of the frame rows shifted by that tap, accumulated in place
