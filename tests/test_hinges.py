@@ -27,7 +27,7 @@ def parts(q: np.ndarray, hinge) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     swing, twist = _swing_twist(q, hinge.axis)
     side = 3 - hinge.axis - hinge.flexion
     angle = np.degrees(2 * np.arctan2(twist[:, hinge.axis], twist[:, 3]))
-    return np.degrees(swing[:, hinge.flexion]), np.degrees(swing[:, side]), angle
+    return np.degrees(swing[:, hinge.flexion]), np.degrees(swing[:, side]), (angle + 180.0) % 360.0 - 180.0
 
 
 def turned(q: np.ndarray, bone: str, axis: int, degrees: float) -> np.ndarray:
@@ -105,3 +105,27 @@ def test_another_skeleton_passes_unchanged():
     q = rot.exp_map(np.random.default_rng(0).normal(size=(5, 7, 3)))
     out = rot.exp_map(np.random.default_rng(1).normal(size=(5, 7, 3)))
     assert np.array_equal(keep_hinges(q, out), out)
+
+
+def test_the_foot_lock_s_leg_ik_bends_knees_as_hinges():
+    """The lock's two-bone IK (``footlock.solve_legs``) on legs turned every way: each knee
+    it solves turns about its hinge axis alone, and each ankle lands on its target."""
+    from stylecast.motion import footlock as F
+    from stylecast.motion.humanoid import humanoid_skeleton_default
+
+    skeleton = humanoid_skeleton_default()
+    rng = np.random.default_rng(0)
+    q = rot.exp_map(rng.normal(scale=0.3, size=(40, len(HUMANOID_BONES), 3)))
+    roots = np.tile([0.0, 90.0, 0.0], (len(q), 1))
+    pos, world, _ = F.leg_chain(roots, q, skeleton.offsets)
+    target = pos[:, :, 2] + rng.normal(scale=3.0, size=(len(q), 2, 3))
+    solved = F.solve_legs(roots, q, skeleton.offsets, target, world[:, :, 2])
+    knee = next(h for h in HINGES if h.bone == "LeftLowerLeg")
+    for side in range(2):
+        flexion, sideways, twist = parts(solved[:, side, 1], knee)
+        assert np.abs(sideways).max() < 1e-6 and np.abs(twist).max() < 1e-6
+    legs = q.copy()
+    legs[:, F.LEG_INDEX[:, :3]] = solved
+    reached = F.leg_chain(roots, legs, skeleton.offsets)[0][:, :, 2]
+    reachable = np.linalg.norm(target - pos[:, :, 0], axis=-1) < 80.0  # well inside the leg's reach
+    assert np.abs(reached - target)[reachable].max() < 0.1
