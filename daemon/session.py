@@ -34,9 +34,9 @@ import numpy as np
 from stylecast.motion.clip import PoseFrame
 from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.footlock import ContactSettings, FootLock, LockJob, plan_locks, push_frames, solve_lock_jobs
+from stylecast.motion.hinges import keep_hinges
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
-from stylecast.motion.hinges import keep_hinges
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
 from stylecast.motion.words import (BlendSettings, SeamBlender, WordCutter, plan_frames, planned_mix,
                                    render_planned)

@@ -91,6 +91,7 @@ from scipy.signal import lfilter
 
 from . import rotations as rot
 from .errors import UserError
+from .hinges import HINGES
 from .humanoid import FORWARD, HUMANOID_BONES
 from .skeleton import Skeleton
 from .smoothing import triple_pole
@@ -550,7 +551,9 @@ def _shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
-_KNEE_AXIS = np.array([1.0, 0.0, 0.0])  # a knee folds about its thigh frame's X (``hinges.HINGES``)
+# The axis of the thigh's frame a knee folds about: both knees share it (``hinges.HINGES``).
+(_KNEE_AXIS,) = {tuple(np.eye(3)[h.flexion]) for h in HINGES if h.bone.endswith("LowerLeg")}
+_KNEE_AXIS = np.array(_KNEE_AXIS)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -16,7 +16,8 @@ restyle only what the joint can do: the flexion, and the forearm's twist. The re
 sideways bend, a knee's twist) is the input's, so an input that is no hinge (a tracker
 solve, another rig) keeps its own, and the flexion may not pass straight unless the input
 does, then no further than the input. Per frame and stateless: ``restyle`` and ``serve``
-run it on the same frames after the correction low-pass, before the foot lock.
+run it on the same frames after the correction low-pass, before the foot lock, whose leg
+IK folds each knee about the same axis (``footlock.solve_legs``).
 """
 
 from __future__ import annotations
@@ -41,6 +42,9 @@ HINGES = (Hinge("LeftLowerArm", 0, 1, -1.0, True), Hinge("RightLowerArm", 0, 1, 
           Hinge("LeftLowerLeg", 1, 0, 1.0, False), Hinge("RightLowerLeg", 1, 0, 1.0, False))
 
 
+_CONJUGATE = np.array([-1.0, -1.0, -1.0, 1.0])  # a unit quaternion's inverse, componentwise
+
+
 def _swing_twist(q: np.ndarray, axis) -> tuple[np.ndarray, np.ndarray]:
     """q (..., 4) xyzw -> (swing as a rotation vector (..., 3), perpendicular to the axis;
     the twist about the axis (..., 4)), q = exp(swing) * twist. ``axis``: an index, or a
@@ -56,9 +60,6 @@ def _swing_twist(q: np.ndarray, axis) -> tuple[np.ndarray, np.ndarray]:
     return swing * (1.0 - along), twist  # perpendicular to the axis, to rounding
 
 
-_CONJUGATE = np.array([-1.0, -1.0, -1.0, 1.0])
-
-
 class _Table(NamedTuple):
     """``HINGES`` as arrays over the hinge bones, for one vectorised pass."""
 
@@ -69,17 +70,17 @@ class _Table(NamedTuple):
     twists: np.ndarray  # (H, 1) bool
 
     @classmethod
-    def of(cls, hinges, bones) -> "_Table":
+    def of(cls, hinges) -> "_Table":
         eye = np.eye(3)
-        return cls([bones.index(h.bone) for h in hinges], eye[[h.axis for h in hinges]],
+        return cls([HUMANOID_BONES.index(h.bone) for h in hinges], eye[[h.axis for h in hinges]],
                    eye[[h.flexion for h in hinges]], np.array([h.bent for h in hinges]),
                    np.array([[h.twists] for h in hinges]))
 
 
-_TABLE = _Table.of(HINGES, HUMANOID_BONES)
+_TABLE = _Table.of(HINGES)
 
 
-def keep_hinges(inputs: np.ndarray, outputs: np.ndarray, hinges=HINGES, bones=HUMANOID_BONES) -> np.ndarray:
+def keep_hinges(inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
     """Humanoid rotations (..., J, 4): the inputs and the restyle's outputs -> the outputs
     with each hinge bone keeping only the flexion (and a forearm's twist) of the restyle.
     Rotations of another skeleton (the tests' small synthetic streams) pass unchanged.
@@ -88,9 +89,9 @@ def keep_hinges(inputs: np.ndarray, outputs: np.ndarray, hinges=HINGES, bones=HU
     0.36 ms (measured beside a running evaluation on the other core)."""
     inputs = np.asarray(inputs, dtype=np.float64)
     out = np.array(outputs, dtype=np.float64)
-    if inputs.shape[-2] != len(bones):
+    if inputs.shape[-2] != len(HUMANOID_BONES):
         return out
-    table = _TABLE if (hinges, bones) == (HINGES, HUMANOID_BONES) else _Table.of(hinges, bones)
+    table = _TABLE
     before = out[..., table.joints, :]
     (swing_in, swing_out), (twist_in, twist_out) = _swing_twist(np.stack([inputs[..., table.joints, :], before]),
                                                                 table.axis)
