@@ -183,10 +183,13 @@ def test_the_planner_lowers_into_a_slack_the_slowest_job_fits_with_more_headroom
 
 
 def test_after_a_one_off_stall_the_delay_comes_back_although_every_result_takes_most_of_a_frame(monkeypatch):
-    # 10 ms a call, one call of 56 ms: the stall makes its words late and raises the
+    # 9 ms a call, one call of 55 ms: the stall makes its words late and raises the
     # delay, and once it has left the window the delay comes back to the preset's, with
-    # results (10 ms and the tick's work) that never left two whole frames of slack unused
+    # results (9 ms and the tick's work) that never left two whole frames of slack unused
     # (within 11.7 ms), the rule that kept a soak's one-off raise for the rest of the hour.
+    # (10 ms until the hinges' pass joined the tick, 2026-11-27: on an AMD EPYC VM the
+    # results then came back over the lowering's 20.9 ms now and then, and the delay stayed
+    # at 6 in 2 runs of 3, against 0 of 3 without the pass; at 9 ms 4 of 4 came back.)
     monkeypatch.setattr(latency, "WINDOW", 30)
     monkeypatch.setattr(latency, "LOWER_AFTER_CHECKS", 2)
     monkeypatch.setattr(latency, "LOWER_EVERY_CHECKS", 2)
@@ -202,7 +205,7 @@ def test_after_a_one_off_stall_the_delay_comes_back_although_every_result_takes_
 
     # Up to 90 s: a shared machine's own stalls raise the delay again now and then (it stops
     # as soon as the delay is back, about 10 s on a quiet machine).
-    daemon, changes = run_real(StallOnce(0.010), 90.0, until=recovered)
+    daemon, changes = run_real(StallOnce(0.009), 90.0, until=recovered)
     s = daemon.sessions[0]
     delays, late = [d for d, _ in changes], [n for _, n in changes]
     assert max(delays) > 5, daemon.delay_notes  # the stall raised it
