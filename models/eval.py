@@ -24,7 +24,8 @@ overall and per action:
 * action kept: share of windows a 10-action classifier still gives the input's action;
 * FMD: Frechet distance of the style classifier's pooled features between restyled
   windows and real held-out windows of the target style; floor = real training windows
-  of the target style against the same held-out ones;
+  of the target style against the same held-out ones; where it lies (``fmd_figures``):
+  its mean part, the distance at the real windows' action mix, each action's feature gap;
   (each of these three by every judge of a panel trained from different seeds: the panel's
   mean is shown, and the goals are read on its worst judge; ``judges.py`` says why)
 * dynamics: share of windows judged as the target by style classifiers that see only
@@ -366,9 +367,13 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     target_k = styles.index(target)
     real_target = np.concatenate(real[target])
     target_train = training_motions(files, [target], per_style, cache_dir)
-    train_windows = np.concatenate([judge_windows(m.rotations, m.root_positions, skeleton) for m in target_train])
+    train_takes = [judge_windows(m.rotations, m.root_positions, skeleton) for m in target_train]
     feats_target = judges.style_features(real_target)
-    fmd_floors = [M.frechet_distance(f, t) for f, t in zip(judges.style_features(train_windows), feats_target)]
+    target_labels = _window_labels(real[target], [actions.index(m.file.action) for m in held[target]])
+    feats_train = judges.style_features(np.concatenate(train_takes))
+    train_labels = _window_labels(train_takes, [actions.index(m.file.action) for m in target_train])
+    real_fmd = fmd_figures(feats_train, train_labels, feats_target, target_labels, actions)
+    fmd_floors = real_fmd["overall"]["fmd_judges"]
     log(f"judges checked on held-out windows; FMD floor (real {target} train vs held-out) "
         f"{', '.join(f'{f:.3f}' for f in fmd_floors)} per judge ({time.perf_counter() - t0:.0f} s)")
 
@@ -429,10 +434,12 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                                                                [acts[i] for i in sel], [a] * len(sel), target_k, styles,
                                                                actions, [dyns[i] for i in sel],
                                                                [short_acts[i] for i in sel])
-            fmd = [M.frechet_distance(f, t) if len(f) > 1 else float("nan")
-                   for f, t in zip((np.concatenate(per_judge) for per_judge in zip(*feats)), feats_target)]
-            summary["overall"]["fmd_judges"] = fmd
-            summary["overall"]["fmd"] = float(np.mean(fmd))
+            fmd = fmd_figures([np.concatenate(per_judge) for per_judge in zip(*feats)],
+                              _window_labels([f[0] for f in feats], act_idx), feats_target, target_labels, actions)
+            summary["overall"].update(fmd["overall"])
+            summary["overall"]["fmd"] = float(np.mean(fmd["overall"]["fmd_judges"]))
+            for a, gap in fmd["per_action"].items():
+                summary["per_action"][a].update(gap)
             summary["overall"]["seam_ratio"] = seam_ratio(ds, masks)
             # The input's own figure on the same grid is not 1 in short clips (the seams
             # fall at the same times in every take): the goal is read relative to it.
@@ -456,6 +463,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "judge_seeds": judges.seeds, "judge_panel": judges.describe(),
                "dynamics_judge_seeds": judges.dynamics_seeds,
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
+               "fmd_floor_parts": real_fmd,
                "real_target_jerk_ratio": real_jerk, "real_target_hold_ratio": real_hold,
                "real_target_skate_ratio": real_skate, "travel_ceiling": ceiling,
                "results": results,
@@ -468,6 +476,26 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     report = write_report(out / "report.md", metrics, plots)
     log(f"eval done in {metrics['seconds']:.0f} s")
     return report
+
+
+def fmd_figures(feats: list[np.ndarray], labels: np.ndarray, feats_target: list[np.ndarray],
+                target_labels: np.ndarray, actions: list[str]) -> dict:
+    """Where a Frechet distance lies, per judge: windows' features ``feats`` (one (N, D) set
+    per judge, actions ``labels``) against the real held-out target windows'. Overall: the
+    distance, its mean part (the rest is the covariances'), and the distance with the windows
+    weighted to the real set's action mix (a restyle of the normal takes inherits their mix:
+    how much of the distance that alone is). Per action: ``metrics.feature_gap`` to the real
+    windows of the same action (a covariance of 64+ dimensions needs more windows than one
+    action has)."""
+    parts = [M.frechet_parts(f, t) if len(f) > 1 else (float("nan"),) * 2 for f, t in zip(feats, feats_target)]
+    weights = M.mix_weights(labels, target_labels)
+    overall = {"fmd_judges": [p[0] for p in parts], "fmd_mean_part_judges": [p[1] for p in parts],
+               "fmd_action_matched_judges": [M.frechet_distance(f, t, weights) if len(f) > 1 else float("nan")
+                                             for f, t in zip(feats, feats_target)]}
+    per_action = {actions[a]: {"feature_gap_judges": [M.feature_gap(f[labels == a], t[target_labels == a])
+                                                      for f, t in zip(feats, feats_target)]}
+                  for a in sorted(set(labels.tolist()) & set(target_labels.tolist()))}
+    return {"overall": overall, "per_action": per_action}
 
 
 def travel_ceiling(source_clips, target_clips, target_windows, target_k: int, judges, skeleton,

@@ -30,7 +30,9 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   itself (a sideways bend or a twist), and either bent past straight. Degrees per frame,
   the worst hinge bone's.
 * Frechet distance between two sets of feature vectors (Gaussian fit), as in FID and
-  seed 003's motion FID.
+  seed 003's motion FID, with its mean part apart, sample weights to match a label mix
+  (``mix_weights``), and a scale-free gap between two sets' means (``feature_gap``) for
+  sets too small for a covariance.
 * travel speed (``travel_speed``, ``with_travel_speed``): the root's mean horizontal speed,
   and a root path rescaled to another speed, for the ceiling of a restyle that keeps the
   input's travel (``eval``).
@@ -200,17 +202,48 @@ def timing_sync(input_positions: np.ndarray, output_positions: np.ndarray) -> fl
     return float(np.corrcoef(a, b)[0, 1])
 
 
-def frechet_distance(x: np.ndarray, y: np.ndarray) -> float:
+def frechet_distance(x: np.ndarray, y: np.ndarray, x_weights: np.ndarray | None = None) -> float:
     """Frechet distance between Gaussians fitted to feature sets x (N, D) and y (M, D):
-    |mu_x - mu_y|^2 + tr(Sx + Sy - 2 (Sx Sy)^(1/2))."""
+    |mu_x - mu_y|^2 + tr(Sx + Sy - 2 (Sx Sy)^(1/2)). ``x_weights`` (N,): fit x's Gaussian
+    to weighted samples (``mix_weights`` gives x the label mix of y)."""
+    return frechet_parts(x, y, x_weights)[0]
+
+
+def frechet_parts(x: np.ndarray, y: np.ndarray, x_weights: np.ndarray | None = None) -> tuple[float, float]:
+    """The Frechet distance and its mean part |mu_x - mu_y|^2; the rest is the covariances'
+    (a set in the right place but too narrow, too wide or turned)."""
     from scipy import linalg
 
     x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
-    mu = x.mean(axis=0) - y.mean(axis=0)
-    sx, sy = np.cov(x, rowvar=False), np.cov(y, rowvar=False)
+    mu = np.average(x, axis=0, weights=x_weights) - y.mean(axis=0)
+    sx, sy = np.cov(x, rowvar=False, aweights=x_weights), np.cov(y, rowvar=False)
     with np.errstate(all="ignore"):
         root = np.real(linalg.sqrtm(sx @ sy))  # rounding can leave a tiny imaginary part
-    return float(mu @ mu + np.trace(sx) + np.trace(sy) - 2 * np.trace(root))
+    mean_part = float(mu @ mu)
+    return mean_part + float(np.trace(sx) + np.trace(sy) - 2 * np.trace(root)), mean_part
+
+
+def mix_weights(labels: np.ndarray, reference_labels: np.ndarray) -> np.ndarray:
+    """Weights (N,) for samples labelled ``labels`` (integers) that give them the label mix
+    of ``reference_labels``: a label's samples share its reference frequency. A label the
+    reference lacks weighs 0; one the samples lack cannot be matched, and the others keep
+    their relative shares."""
+    labels, reference_labels = np.asarray(labels), np.asarray(reference_labels)
+    n = max(labels.max(initial=0), reference_labels.max(initial=0)) + 1
+    have = np.bincount(labels, minlength=n).astype(np.float64)
+    want = np.bincount(reference_labels, minlength=n) / max(len(reference_labels), 1)
+    return (want / np.maximum(have, 1.0))[labels]
+
+
+def feature_gap(x: np.ndarray, y: np.ndarray) -> float:
+    """How far the mean of feature set x (N, D) lies from the mean of y (M, D), in y's own
+    spread: |mu_x - mu_y| / sqrt(tr Sy), the distance over the root-mean-square distance of
+    y's samples from their mean. About 0 for another draw of y, 1 for y moved by one typical
+    deviation. Scale-free, so judges' feature spaces can be averaged; and defined for the
+    few dozen windows of one action, where a covariance of 64+ dimensions is not."""
+    x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
+    spread = np.sqrt(np.sum(np.var(y, axis=0)))
+    return float(np.linalg.norm(x.mean(axis=0) - y.mean(axis=0)) / spread) if spread > 0 else float("nan")
 
 
 def travel_speed(roots: np.ndarray) -> float:

@@ -241,6 +241,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                      + (f" {_num(holds.get(a), 2)} |" if holds else "")
                      + (f" {_num(skates.get(a), 2)} |" if skates else ""))
     lines += travel_ceiling_lines(m)
+    lines += fmd_lines(m)
     lines += ["", "## Seams", "",
               f"Seam ratio of the model under test as plain 60-frame words (the paper's setting, no blend): "
               f"{_num(m['plain_words_seam_ratio'])}; blended (above): "
@@ -251,6 +252,49 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
     lines += ["", f"Evaluation took {m['seconds']:.0f} s. Raw numbers: `metrics.json`.", ""]
     path.write_text("\n".join(lines))
     return path
+
+
+def fmd_lines(m: dict) -> list[str]:
+    """The section on where the Frechet distance lies: mean against spread, the action mix,
+    and each action's gap (``eval.fmd_figures``)."""
+    real = m.get("fmd_floor_parts")
+    if not real:  # a report from before these figures
+        return []
+    tgt, res, floors = m["target"], m["results"], fmd_floors(m)
+    matched_floors = real["overall"]["fmd_action_matched_judges"]
+
+    def over(values, by):
+        return [v / f if f > 0 else float("nan") for v, f in zip(values, by)]
+
+    lines = ["", "## Where the Fréchet distance lies, stream", "",
+             "Each judge's FMD over its floor; the share of the distance that lies between the means (the rest is "
+             "the windows' spread: too narrow, too wide or turned); and the FMD with the windows weighted to the "
+             f"real {tgt} windows' action mix, over the floor weighted the same way (a restyle of the "
+             f"{m['source']} takes inherits their mix; this is how much of the distance that alone is). Panel mean "
+             "(lowest–highest judge).", "",
+             "| windows | FMD / floor | mean part, share | action mix matched / matched floor |", "|---|---|---|---|",
+             f"| real {tgt}, training split | 1.0× | {_range(_shares(real['overall']), _pct)} | 1.0× |"]
+    for name, r in res.items():
+        o = r["stream"]["overall"]
+        lines.append(f"| {name} | {_range(over(o['fmd_judges'], floors), _ratio)} | {_range(_shares(o), _pct)} | "
+                     f"{_range(over(o['fmd_action_matched_judges'], matched_floors), _ratio)} |")
+    actions = list(real["per_action"])
+    lines += ["", f"Per action: how far the windows' mean features lie from the real held-out {tgt} windows' of the "
+              "same action, in those windows' own spread (`metrics.feature_gap`: 0 for the same distribution, 1 for "
+              "one typical deviation away; the panel's mean). The first row is the real training windows: what "
+              "another draw of real motion gives.", "",
+              "| windows | " + " | ".join(actions) + " |", "|---|" + "---|" * len(actions),
+              f"| real {tgt}, training split | "
+              + " | ".join(_num(np.mean(real["per_action"][a]["feature_gap_judges"]), 2) for a in actions) + " |"]
+    for name, r in res.items():
+        per = r["stream"]["per_action"]
+        lines.append(f"| {name} | " + " | ".join(
+            _num(np.mean(per[a]["feature_gap_judges"]), 2) if a in per else "-" for a in actions) + " |")
+    return lines
+
+
+def _shares(overall: dict) -> list[float]:
+    return [p / f if f > 0 else float("nan") for p, f in zip(overall["fmd_mean_part_judges"], overall["fmd_judges"])]
 
 
 def travel_ceiling_lines(m: dict) -> list[str]:

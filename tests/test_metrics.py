@@ -143,6 +143,39 @@ def test_frechet_distance_is_zero_for_one_set_and_the_squared_shift_for_a_moved_
     assert M.frechet_distance(wider, x) == pytest.approx(8.0, rel=0.1)
 
 
+def test_frechet_parts_split_a_moved_set_from_a_widened_one():
+    x = np.random.default_rng(0).standard_normal((4000, 8))
+    total, mean_part = M.frechet_parts(x + np.array([3.0] + [0.0] * 7), x)
+    assert mean_part == pytest.approx(9.0, rel=1e-3) and total == pytest.approx(9.0, rel=1e-3)
+    x -= x.mean(axis=0)
+    total, mean_part = M.frechet_parts(x * 2.0, x)  # all of it the covariance's
+    assert mean_part == pytest.approx(0.0, abs=1e-3) and total == pytest.approx(8.0, rel=0.1)
+
+
+def test_mix_weights_give_a_set_the_reference_label_mix():
+    # Two clusters (labels 0 and 1) far apart; the samples hold them 9:1, the reference 1:1.
+    rng = np.random.default_rng(1)
+    centres = np.array([[0.0] * 4, [6.0] + [0.0] * 3])
+    labels, reference_labels = np.repeat([0, 1], [1800, 200]), np.repeat([0, 1], [1000, 1000])
+    x = centres[labels] + rng.standard_normal((2000, 4))
+    y = centres[reference_labels] + rng.standard_normal((2000, 4))
+    w = M.mix_weights(labels, reference_labels)
+    assert w[labels == 0].sum() == pytest.approx(0.5) and w[labels == 1].sum() == pytest.approx(0.5)
+    assert M.frechet_distance(x, y) > 4.0  # the mix alone puts them apart...
+    assert M.frechet_distance(x, y, w) < 0.1  # ...and matched, they are one distribution
+    assert M.mix_weights(np.array([0, 0, 2]), np.array([1, 2]))[:2].sum() == 0.0  # 0 is not in the reference
+
+
+def test_feature_gap_reads_a_moved_set_in_the_real_spread():
+    rng = np.random.default_rng(2)
+    y = rng.standard_normal((3000, 16)) * 0.5
+    assert M.feature_gap(rng.standard_normal((3000, 16)) * 0.5, y) < 0.05  # another draw
+    typical = np.sqrt(np.mean(np.sum((y - y.mean(axis=0)) ** 2, axis=1)))  # y's rms distance from its mean
+    moved = y + np.eye(16)[0] * 2 * typical
+    assert M.feature_gap(moved, y) == pytest.approx(2.0, rel=1e-6)
+    assert M.feature_gap(y * 3.0, y) < 0.05  # a wider set in the same place: no gap (FMD's covariance part)
+
+
 def test_seam_ratio_sees_a_jump_at_each_word_boundary():
     rng = np.random.default_rng(0)
     d = [np.abs(rng.normal(1.0, 0.05, (600, J)))]

@@ -159,7 +159,7 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
                     "Per action, stream", "What the action judges took each action's 2 s windows for",
                     "What the windows were taken for", "Real motion: jerk", "Seams",
-                    "The ceiling of a restyle that keeps the input's travel"):
+                    "The ceiling of a restyle that keeps the input's travel", "Where the Fréchet distance lies"):
         assert section in report
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     results = metrics["results"]
@@ -174,6 +174,18 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     assert live_input["timing_sync"] == pytest.approx(1.0) and live_input["judged_target"] < 0.5
     # a one-epoch model is nearly the identity: far from the target on FMD, unlike real target windows
     assert results["proposed"]["stream"]["overall"]["fmd"] > metrics["fmd_floor"]
+    # where the distance lies: the floor's parts are the floor; a mean part never exceeds the whole;
+    # each action's gap is there, and the normal input's mean lies farther from the real target
+    # windows than another draw of real target windows does (a different style: the known-bad case)
+    real = metrics["fmd_floor_parts"]
+    assert real["overall"]["fmd_judges"] == metrics["fmd_floor_judges"]
+    for o in (real["overall"], live_input):
+        assert all(0 <= p <= f + 1e-9 for p, f in zip(o["fmd_mean_part_judges"], o["fmd_judges"]))
+        assert len(o["fmd_action_matched_judges"]) == 3
+    gaps = {name: np.mean([g["feature_gap_judges"] for g in per.values()])
+            for name, per in (("real", real["per_action"]), ("input", results["input"]["stream"]["per_action"]))}
+    assert set(real["per_action"]) <= set(results["input"]["stream"]["per_action"])
+    assert gaps["input"] > gaps["real"], gaps  # (two files a style here: real draws differ too)
     # two conv judges of each kind, seeds 0 and 1, and a GRU judge, each with its own figures
     # and FMD space
     assert metrics["judge_panel"] == "conv 0, conv 1, gru 0" and "conv 0, conv 1, gru 0" in report
