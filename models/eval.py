@@ -38,9 +38,10 @@ overall and per action:
   whatever the input's feet did there), output / input, stricter than the issue;
 * timing sync (correlation of body speed, input vs output);
 * seam ratio (METHOD.md) of the blended output, and of plain 60-frame words for contrast;
-* the travel ceiling (``travel_ceiling``): real target-style clips judged with their root
-  path covered at the source clips' speed, what a restyle that keeps the input's travel
-  (``--pace input``) could read at best.
+* the ceilings (``ceilings.py``): real target-style clips judged with their root path
+  covered at the source clips' speed, what a restyle that keeps the input's travel
+  (``--pace input``) could read at best; and played at the source clips' tempo, what one
+  that keeps the performer's timing could (style, dynamics and FMD).
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ from .data import bandai_skeleton
 from . import metrics as M
 from . import representation as R
 from .baselines import PostureRestyler
+from .ceilings import tempo_ceiling, travel_ceiling
 from .judges import DYNAMICS_PANEL, PANEL, RECURRENT_PANEL, Judges, judge_windows, training_motions
 from .restyle import padding, restyle_rotations
 from .restyler import Restyler
@@ -452,6 +454,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
 
     windows = {a: o["windows"] for a, o in results["input"]["stream"]["per_action"].items()}
     ceiling = travel_ceiling(held[source], held[target], real[target], target_k, judges, skeleton, windows)
+    tempo = tempo_ceiling(held[source], held[target], target_k, judges, skeleton, feats_target, target_labels, actions,
+                          windows)
 
     # The paper's plain words (hop 60, no blend) against the blend, for the model under test.
     plain = [restyle_rotations(m.rotations.astype(np.float64), proposed.restyle_words, WORD, decay_frames=0).rotations
@@ -465,7 +469,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
                "fmd_floor_parts": real_fmd,
                "real_target_jerk_ratio": real_jerk, "real_target_hold_ratio": real_hold,
-               "real_target_skate_ratio": real_skate, "travel_ceiling": ceiling,
+               "real_target_skate_ratio": real_skate, "travel_ceiling": ceiling, "tempo_ceiling": tempo,
                "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
                "torch_threads": _torch_threads()}
@@ -496,45 +500,6 @@ def fmd_figures(feats: list[np.ndarray], labels: np.ndarray, feats_target: list[
                                                       for f, t in zip(feats, feats_target)]}
                   for a in sorted(set(labels.tolist()) & set(target_labels.tolist()))}
     return {"overall": overall, "per_action": per_action}
-
-
-def travel_ceiling(source_clips, target_clips, target_windows, target_k: int, judges, skeleton,
-                   weights: dict[str, int]) -> dict:
-    """How well a restyle that keeps the input's travel can read as the target, at best.
-
-    With ``--pace input`` stylecast keeps the root's horizontal path (an avatar stays where
-    its performer is), but the judges see a window's positions relative to the hips at its
-    centre, travel included, and some styles cover ground at their own speed (real exhausted
-    runs at about 0.8x the normal ones'). So real held-out target-style clips are judged
-    twice: as they are,
-    and with their root path covered at the mean speed of the source clips of the same action
-    (``metrics.with_travel_speed``: path shape, timing and posture kept). The second is what a
-    perfect restyle could read through a lock on the input's travel. Per action, and overall
-    on the restyled clips' mix: each action weighted by ``weights`` (its restyled windows),
-    over the actions both styles have. Figures are per judge."""
-    speed = {}
-    for m in source_clips:
-        speed.setdefault(m.file.action, []).append(M.travel_speed(m.root_positions))
-    votes: dict[str, dict[str, list]] = {}
-    for m, as_is in zip(target_clips, target_windows):
-        a = m.file.action
-        if a not in speed:
-            continue
-        moved = M.with_travel_speed(m.root_positions, float(np.mean(speed[a])))
-        row = votes.setdefault(a, {"as_is": [], "source_travel": [], "speed": []})
-        row["as_is"].append(judges.style_votes(as_is) == target_k)
-        row["source_travel"].append(judges.style_votes(judge_windows(m.rotations, moved, skeleton)) == target_k)
-        row["speed"].append(M.travel_speed(m.root_positions))
-    per_action = {a: {"speed_ratio": float(np.mean(v["speed"]) / max(np.mean(speed[a]), 1e-12)),
-                      **{f"{k}_judges": np.concatenate(v[k], axis=1).mean(axis=1).tolist()
-                         for k in ("as_is", "source_travel")}}
-                  for a, v in sorted(votes.items())}
-    mix = {a: weights.get(a, 0) for a in per_action}
-    total = sum(mix.values())
-    overall = {f"{k}_judges": (sum(np.asarray(per_action[a][f"{k}_judges"]) * n for a, n in mix.items()) / total).tolist()
-               if total else [] for k in ("as_is", "source_travel")}
-    return {"overall": overall, "per_action": per_action,
-            "actions_missing": sorted(set(weights) - set(per_action))}
 
 
 def _plots(out: Path, clips, outputs: dict, skeleton) -> list[str]:

@@ -33,6 +33,8 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   seed 003's motion FID, with its mean part apart, sample weights to match a label mix
   (``mix_weights``), and a scale-free gap between two sets' means (``feature_gap``) for
   sets too small for a covariance.
+* tempo (``tempo``): the dominant frequency of a take's joints against its hips, for the
+  ceiling of a restyle that keeps the performer's timing (``ceilings``).
 * travel speed (``travel_speed``, ``with_travel_speed``): the root's mean horizontal speed,
   and a root path rescaled to another speed, for the ceiling of a restyle that keeps the
   input's travel (``eval``).
@@ -244,6 +246,18 @@ def feature_gap(x: np.ndarray, y: np.ndarray) -> float:
     x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
     spread = np.sqrt(np.sum(np.var(y, axis=0)))
     return float(np.linalg.norm(x.mean(axis=0) - y.mean(axis=0)) / spread) if spread > 0 else float("nan")
+
+
+def tempo(positions: np.ndarray, fps: float = 60.0, lowest: float = 0.2) -> float:
+    """The dominant frequency (Hz) of a take's joints moving against its hips (joint 0): their
+    power spectra (Hann window) summed over joints and axes, above ``lowest`` Hz (slow drift).
+    A walk's stride, a wave's beat, about one over the length of a one-off raise."""
+    rel = np.asarray(positions, np.float64) - np.asarray(positions, np.float64)[:, :1]
+    rel = (rel - rel.mean(axis=0)).reshape(len(rel), -1)
+    power = np.sum(np.abs(np.fft.rfft(rel * np.hanning(len(rel))[:, None], axis=0)) ** 2, axis=1)
+    freqs = np.fft.rfftfreq(len(rel), 1.0 / fps)
+    keep = freqs > lowest
+    return float(freqs[keep][np.argmax(power[keep])]) if keep.any() else float("nan")
 
 
 def travel_speed(roots: np.ndarray) -> float:

@@ -326,7 +326,7 @@ def test_the_travel_ceiling_falls_for_a_style_told_by_its_pace_and_not_for_one_t
     longer read as the target; an action whose pace is the same keeps its reading."""
     from types import SimpleNamespace
 
-    from stylecast.models.eval import travel_ceiling
+    from stylecast.models.ceilings import travel_ceiling
     from stylecast.models.judges import judge_windows
 
     sk = humanoid_skeleton_default()
@@ -346,6 +346,81 @@ def test_the_travel_ceiling_falls_for_a_style_told_by_its_pace_and_not_for_one_t
     # weighted by the restyled windows of each action both styles have: (3 * 0 + 1 * 1) / 4
     assert c["overall"]["as_is_judges"] == [1.0] and c["overall"]["source_travel_judges"] == [pytest.approx(0.25)]
     assert c["actions_missing"] == ["walk"]
+
+
+def _waving(hz: float, seconds: float = 8.0) -> tuple[np.ndarray, np.ndarray]:
+    """Every bone swinging 20 degrees about Z at ``hz``, the root still: (rotations, roots)."""
+    t = np.arange(int(seconds * 60)) / 60.0
+    angles = np.zeros((len(t), J, 3))
+    angles[..., 0] = 20 * np.sin(2 * np.pi * hz * t)[:, None]
+    return rot.canonical_hemisphere(rot.from_euler(angles, "ZXY")), np.tile([0.0, 90.0, 0.0], (len(t), 1))
+
+
+def test_tempo_reads_the_beat_of_a_take_and_a_take_played_faster():
+    from stylecast.models.ceilings import played_at
+
+    sk = humanoid_skeleton_default()
+    for hz in (0.75, 1.5):
+        assert M.tempo(M.world_positions(*_waving(hz), sk)) == pytest.approx(hz, abs=1 / 8)  # the 8 s take's bin
+    twice = played_at(*_waving(0.75), sk, 2.0)
+    assert len(twice[0]) == pytest.approx(240, abs=1)  # 8 s at twice the rate: 4 s at 60 fps
+    assert M.tempo(M.world_positions(*twice, sk)) == pytest.approx(1.5, abs=1 / 4)
+
+
+class _TempoJudge:
+    """A stand-in judge that reads the beat alone: the target style (1) when the joints move
+    slower than ``threshold`` (metres a frame, against the hips); its features are that speed
+    in millimetres a frame and its square, so a faster set lies away from a slower one."""
+
+    def __init__(self, threshold: float):
+        self.threshold = threshold
+
+    @staticmethod
+    def speed(windows: np.ndarray) -> np.ndarray:
+        return np.abs(np.diff(windows - windows[:, :, :1], axis=1)).mean(axis=(1, 2, 3))
+
+    def style_votes(self, windows):
+        return (self.speed(windows) < self.threshold).astype(int)[None]
+
+    dynamics_votes = style_votes
+
+    def style_features(self, windows):
+        v = 1e3 * self.speed(windows)
+        return [np.stack([v, v ** 2 + 1e-3 * np.sin(np.arange(len(v)))], axis=1)]
+
+
+def test_the_tempo_ceiling_falls_for_a_style_told_by_its_beat_and_not_for_one_it_shares():
+    """The known-bad case of a restyle that keeps the performer's timing: a style whose real
+    waves beat at half the rate. Played at the source's tempo, real target waves no longer
+    read as the target and lie away from the recorded ones; an action both styles perform at
+    one tempo keeps its reading and adds no distance."""
+    from types import SimpleNamespace
+
+    from stylecast.models.ceilings import tempo_ceiling
+    from stylecast.models.judges import judge_windows
+
+    sk = humanoid_skeleton_default()
+
+    def clip(action, hz):
+        q, roots = _waving(hz)
+        return SimpleNamespace(file=SimpleNamespace(action=action), rotations=q, root_positions=roots)
+
+    slow, fast = (_TempoJudge.speed(judge_windows(*_waving(hz), sk)).mean() for hz in (0.75, 1.5))
+    judge = _TempoJudge(np.sqrt(slow * fast))
+    actions = ["raise", "wave", "walk"]
+    source, target = [clip("wave", 1.5), clip("raise", 0.75)], [clip("wave", 0.75), clip("raise", 0.75)]
+    windows = [judge_windows(c.rotations, c.root_positions, sk) for c in target]
+    feats = judge.style_features(np.concatenate(windows))
+    labels = np.concatenate([np.full(len(w), actions.index(c.file.action)) for w, c in zip(windows, target)])
+    c = tempo_ceiling(source, target, 1, judge, sk, feats, labels, actions, {"wave": 1, "raise": 3, "walk": 5})
+    wave, raise_ = c["per_action"]["wave"], c["per_action"]["raise"]
+    assert wave["tempo_ratio"] == pytest.approx(2.0) and raise_["tempo_ratio"] == pytest.approx(1.0)
+    assert wave["judged_judges"] == [0.0] and wave["dynamics_judges"] == [0.0]
+    assert raise_["judged_judges"] == [1.0] and raise_["dynamics_judges"] == [1.0]
+    assert c["overall"]["judged_judges"] == [pytest.approx(0.75)]  # (1 * 0 + 3 * 1) / 4
+    assert c["overall"]["fmd_judges"][0] > 1.0  # the waves' speed doubles: a gap of millimetres a frame
+    same = tempo_ceiling(target, target, 1, judge, sk, feats, labels, actions, {"wave": 1, "raise": 3})
+    assert same["overall"]["judged_judges"] == [1.0] and same["overall"]["fmd_judges"][0] < 1e-6
 
 
 def _walk(turn_degrees: float, frames: int = 240):

@@ -159,7 +159,8 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     for section in ("The judges", "Goals, model under test, stream", "All variants, live-from-start",
                     "Per action, stream", "What the action judges took each action's 2 s windows for",
                     "What the windows were taken for", "Real motion: jerk", "Seams",
-                    "The ceiling of a restyle that keeps the input's travel", "Where the Fréchet distance lies"):
+                    "The ceiling of a restyle that keeps the input's travel", "Where the Fréchet distance lies",
+                    "The ceiling of a restyle that keeps the performer's timing"):
         assert section in report
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     results = metrics["results"]
@@ -185,7 +186,11 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     gaps = {name: np.mean([g["feature_gap_judges"] for g in per.values()])
             for name, per in (("real", real["per_action"]), ("input", results["input"]["stream"]["per_action"]))}
     assert set(real["per_action"]) <= set(results["input"]["stream"]["per_action"])
-    assert gaps["input"] > gaps["real"], gaps  # (two files a style here: real draws differ too)
+    assert gaps["input"] > gaps["real"], gaps
+    tempo = metrics["tempo_ceiling"]  # real target clips at the source's tempo, read by every judge
+    assert set(tempo["per_action"]) <= set(results["input"]["stream"]["per_action"])
+    assert all(r["tempo_ratio"] > 0 for r in tempo["per_action"].values())
+    assert len(tempo["overall"]["judged_judges"]) == len(tempo["overall"]["fmd_judges"]) == 3  # (two files a style here: real draws differ too)
     # two conv judges of each kind, seeds 0 and 1, and a GRU judge, each with its own figures
     # and FMD space
     assert metrics["judge_panel"] == "conv 0, conv 1, gru 0" and "conv 0, conv 1, gru 0" in report
