@@ -69,7 +69,8 @@ def travel_ceiling(source_clips, target_clips, target_windows, target_k: int, ju
 
 def played_at(rotations: np.ndarray, roots: np.ndarray, skeleton, speed: float) -> tuple[np.ndarray, np.ndarray]:
     """A take (rotations (T, J, 4), roots (T, 3) at 60 fps) played ``speed`` times as fast:
-    resampled (slerp, lerp), so every pose is the take's and only the rate changes."""
+    resampled (slerp, lerp), so every pose is the take's and only the rate changes (the
+    root's travel with it: a walk's tempo ratio is near 1, a standing action hardly travels)."""
     clip = resample(Clip(skeleton, rotations, roots, FPS), FPS / speed)
     return clip.rotations, clip.root_positions
 
