@@ -178,6 +178,13 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
             lines += ["", f"Real {tgt} clips at the {src} clips' pace read {_pct(min(ceiling))} as {tgt} on the worst "
                       "judge: the most a restyle that keeps the input's travel (`--pace input`) can be expected to read (see "
                       "\"The ceiling of a restyle that keeps the input's travel\")."]
+        tempo = m.get("tempo_ceiling", {}).get("overall", {})
+        if setting == "stream" and tempo.get("fmd_judges"):
+            worst = max(f / floor for f, floor in zip(tempo["fmd_judges"], floors))
+            lines += ["", f"Real {tgt} clips played at the {src} clips' tempo lie **{_ratio(worst)}** the floor from the "
+                      f"recorded ones on the worst judge's FMD, and read {_pct(min(tempo['dynamics_judges'] or [np.nan]))} "
+                      "as the target to the worst dynamics judge: what a restyle in the performer's own time can be "
+                      "expected to reach on those two (see \"The ceiling of a restyle that keeps the performer's timing\")."]
         lines += ["", f"## All variants, {setting} (all actions)", "",
                   "| variant | judged target | action kept (2 s) | action kept (1 s) | FMD / floor | jerk all | "
                   "jerk hands | jerk feet | largest one-frame jerk / input's, worst clip (median) | "
