@@ -396,7 +396,7 @@ def test_the_tempo_ceiling_falls_for_a_style_told_by_its_beat_and_not_for_one_it
     one tempo keeps its reading and adds no distance."""
     from types import SimpleNamespace
 
-    from stylecast.models.ceilings import tempo_ceiling
+    from stylecast.models.ceilings import played_at, tempo_ceiling
     from stylecast.models.judges import judge_windows
 
     sk = humanoid_skeleton_default()
@@ -419,6 +419,13 @@ def test_the_tempo_ceiling_falls_for_a_style_told_by_its_beat_and_not_for_one_it
     assert raise_["judged_judges"] == [1.0] and raise_["dynamics_judges"] == [1.0]
     assert c["overall"]["judged_judges"] == [pytest.approx(0.75)]  # (1 * 0 + 3 * 1) / 4
     assert c["overall"]["fmd_judges"][0] > 1.0  # the waves' speed doubles: a gap of millimetres a frame
+    # ...read at the real windows' action mix: the faster waves give half as many windows
+    retimed = [judge_windows(*played_at(t.rotations, t.root_positions, sk, r), sk) for t, r in zip(target, (2.0, 1.0))]
+    retimed_labels = np.concatenate([np.full(len(w), actions.index(t.file.action)) for w, t in zip(retimed, target)])
+    retimed_feats = judge.style_features(np.concatenate(retimed))[0]
+    matched = M.frechet_distance(retimed_feats, feats[0], M.mix_weights(retimed_labels, labels))
+    assert c["overall"]["fmd_judges"][0] == pytest.approx(matched, rel=1e-6)
+    assert matched != pytest.approx(M.frechet_distance(retimed_feats, feats[0]), rel=0.05)
     same = tempo_ceiling(target, target, 1, judge, sk, feats, labels, actions, {"wave": 1, "raise": 3})
     assert same["overall"]["judged_judges"] == [1.0] and same["overall"]["fmd_judges"][0] < 1e-6
 
