@@ -106,7 +106,8 @@ def tempo_ceiling(source_clips, target_clips, target_k: int, judges, skeleton, f
         feats.append(judges.style_features(windows))
         labels.append(np.full(len(windows), actions.index(a)))
     per_action = {a: {"tempo_ratio": r["tempo_ratio"],
-                      **{f"{k}_judges": np.concatenate(r[k], axis=1).mean(axis=1).tolist() for k in ("judged", "dynamics")}}
+                      **{f"{k}_judges": np.concatenate(r[k], axis=1).mean(axis=1).tolist()
+                         for k in ("judged", "dynamics")}}
                   for a, r in sorted(rows.items())}
     overall = _weighted(per_action, ("judged", "dynamics"), weights)
     if feats:

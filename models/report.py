@@ -60,7 +60,12 @@ def _judges(overall: dict, key: str) -> list[float]:
 
 def fmd_ratios(overall: dict, floors: list[float]) -> list[float]:
     """FMD over the real-vs-real floor, in each style judge's feature space."""
-    return [f / floor if floor > 0 else float("nan") for f, floor in zip(_judges(overall, "fmd"), floors)]
+    return over_floors(_judges(overall, "fmd"), floors)
+
+
+def over_floors(distances: list[float], floors: list[float]) -> list[float]:
+    """Each judge's distance over its own floor (judges' feature spaces have their own scales)."""
+    return [f / floor if floor > 0 else float("nan") for f, floor in zip(distances, floors)]
 
 
 def goal_values(overall: dict, floors: list[float]) -> dict:
@@ -180,11 +185,12 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                       "\"The ceiling of a restyle that keeps the input's travel\")."]
         tempo = m.get("tempo_ceiling", {}).get("overall", {})
         if setting == "stream" and tempo.get("fmd_judges"):
-            worst = max(f / floor for f, floor in zip(tempo["fmd_judges"], floors))
-            lines += ["", f"Real {tgt} clips played at the {src} clips' tempo lie **{_ratio(worst)}** the floor from the "
-                      f"recorded ones on the worst judge's FMD, and read {_pct(min(tempo['dynamics_judges'] or [np.nan]))} "
-                      "as the target to the worst dynamics judge: what a restyle in the performer's own time can be "
-                      "expected to reach on those two (see \"The ceiling of a restyle that keeps the performer's timing\")."]
+            worst = max(over_floors(tempo["fmd_judges"], floors))
+            dynamics = min(tempo["dynamics_judges"] or [np.nan])
+            lines += ["", f"Real {tgt} clips played at the {src} clips' tempo lie **{_ratio(worst)}** the floor "
+                      f"from the recorded ones on the worst judge's FMD, and read {_pct(dynamics)} as the target to "
+                      "the worst dynamics judge: what a restyle in the performer's own time can be expected to "
+                      "reach on those two (see \"The ceiling of a restyle that keeps the performer's timing\")."]
         lines += ["", f"## All variants, {setting} (all actions)", "",
                   "| variant | judged target | action kept (2 s) | action kept (1 s) | FMD / floor | jerk all | "
                   "jerk hands | jerk feet | largest one-frame jerk / input's, worst clip (median) | "
@@ -270,10 +276,6 @@ def fmd_lines(m: dict) -> list[str]:
         return []
     tgt, res, floors = m["target"], m["results"], fmd_floors(m)
     matched_floors = real["overall"]["fmd_action_matched_judges"]
-
-    def over(values, by):
-        return [v / f if f > 0 else float("nan") for v, f in zip(values, by)]
-
     lines = ["", "## Where the Fréchet distance lies, stream", "",
              "Each judge's FMD over its floor; the share of the distance that lies between the means (the rest is "
              "the windows' spread: too narrow, too wide or turned); and the FMD with the windows weighted to the "
@@ -284,8 +286,9 @@ def fmd_lines(m: dict) -> list[str]:
              f"| real {tgt}, training split | 1.0× | {_range(_shares(real['overall']), _pct)} | 1.0× |"]
     for name, r in res.items():
         o = r["stream"]["overall"]
-        lines.append(f"| {name} | {_range(over(o['fmd_judges'], floors), _ratio)} | {_range(_shares(o), _pct)} | "
-                     f"{_range(over(o['fmd_action_matched_judges'], matched_floors), _ratio)} |")
+        lines.append(f"| {name} | {_range(over_floors(o['fmd_judges'], floors), _ratio)} | "
+                     f"{_range(_shares(o), _pct)} | "
+                     f"{_range(over_floors(o['fmd_action_matched_judges'], matched_floors), _ratio)} |")
     actions = list(real["per_action"])
     lines += ["", f"Per action: how far the windows' mean features lie from the real held-out {tgt} windows' of the "
               "same action, in those windows' own spread (`metrics.feature_gap`: 0 for the same distribution, 1 for "
@@ -302,7 +305,7 @@ def fmd_lines(m: dict) -> list[str]:
 
 
 def _shares(overall: dict) -> list[float]:
-    return [p / f if f > 0 else float("nan") for p, f in zip(overall["fmd_mean_part_judges"], overall["fmd_judges"])]
+    return over_floors(overall["fmd_mean_part_judges"], overall["fmd_judges"])  # the part over the whole
 
 
 def travel_ceiling_lines(m: dict) -> list[str]:
@@ -337,7 +340,7 @@ def tempo_ceiling_lines(m: dict) -> list[str]:
         return []
     src, tgt = m["source"], m["target"]
     o = c["overall"]
-    ratios = [f / floor if floor > 0 else float("nan") for f, floor in zip(o.get("fmd_judges", []), fmd_floors(m))]
+    ratios = over_floors(o.get("fmd_judges", []), fmd_floors(m))
     lines = ["", "## The ceiling of a restyle that keeps the performer's timing", "",
              f"The generator restyles each word in its performer's time (the timing-sync goal asks for it), but "
              f"styles have their own tempo. Real held-out {tgt} clips played at the tempo of the held-out {src} clips "
