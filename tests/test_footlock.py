@@ -800,16 +800,23 @@ def test_a_foot_lifted_slowly_through_the_hysteresis_band_is_found_alike_one_fra
     assert height.max() > settings.release_height + 3 and speed.max() < settings.plant_speed
     assert np.sum((height > settings.plant_height) & (height < settings.release_height)) > 20  # the band, slowly
 
-    whole = FootLock(SK).push(roots, q)
+    whole_lock = FootLock(SK)
+    whole = whole_lock.push(roots, q)  # as detected
     single = FootLock(SK)
     one_at_a_time = np.concatenate([single.push(roots[t:t + 1], q[t:t + 1]) for t in range(frames)])
     small, small_roots = SK.with_offsets(SK.offsets * 0.85), roots * [1, 0.85, 1]  # a second performer
     ticked = [FootLock(SK), FootLock(small)]
     for t in range(frames):
         push_frames([(ticked[0], roots[t], q[t]), (ticked[1], small_roots[t], q[t])])
+    small_whole = FootLock(small)
+    small_whole.push(small_roots, q)
     np.testing.assert_array_equal(one_at_a_time, whole)
-    np.testing.assert_array_equal(ticked[0]._contacts, whole)
-    np.testing.assert_array_equal(ticked[1]._contacts, FootLock(small).push(small_roots, q))
+    # As the locks use them: the first frame took the second's (it has no speed of its own).
+    assert not whole[0].any() and whole_lock._contacts[0].tolist() == whole[1].tolist() == [True, True]
+    np.testing.assert_array_equal(whole_lock._contacts[1:], whole[1:])
+    for lock in (single, ticked[0]):
+        np.testing.assert_array_equal(lock._contacts, whole_lock._contacts)
+    np.testing.assert_array_equal(ticked[1]._contacts, small_whole._contacts)
     right = whole[:, 1].copy()
     right[0] = True  # (a stream's first frame has no speed, so no contact: not a landing)
     lifted, landed = np.flatnonzero(right[:-1] & ~right[1:]) + 1, np.flatnonzero(~right[:-1] & right[1:]) + 1
