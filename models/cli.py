@@ -129,8 +129,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="frames between words (1..60; 60 = no overlap); default: as `serve`")
     p.add_argument("--fps", type=float, help="frame rate of the output (default: the input's)")
     p.add_argument("--live", action="store_true",
-                   help="render as the live daemon does (start in pass-through and fade in, no mirrored "
-                        "pre-roll): the same frames `stylecast serve` sends for this clip")
+                   help="render as the live daemon does (no mirrored pre-roll: the first words hold the first "
+                        "frame): the same frames `stylecast serve` sends for this clip")
     p.add_argument("--map", type=Path, help="JSON/TOML table of source joint name -> humanoid bone")
     p.add_argument("--feet", default="auto", metavar="auto|input|stance",
                    help="planted feet on the input's own ankles (input) or where the restyled legs stand "

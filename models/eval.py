@@ -7,7 +7,7 @@ seam blender, foot lock), in two settings:
 
 * ``stream``: what ``serve`` sends, at its default hop, for a stream that has been
   running (the clip pre-rolled with its own mirrored motion, as ``restyle`` writes it);
-* ``live-from-start``: ``serve`` started on the clip: pass-through, then the fade-in.
+* ``live-from-start``: ``serve`` started on the clip (its first words hold its first frame).
 
 Variants: ``input`` (nothing done: the floor of every "kept" measure), ``posture`` (the
 mean pose difference between the two styles added to the input: the cheapest possible
@@ -76,10 +76,10 @@ BASELINE = "normal2exhausted-coherence"
 # "stream": every frame served by words, as ``serve`` sends a stream that has been running
 # (the clip is pre-rolled with its own mirrored motion, as ``restyle`` does; that the
 # daemon computes exactly this is tests/test_daemon.py's restyle --live == serve).
-# "live-from-start": ``serve`` started on the clip itself: the restyle fades in over the first
-# half second (the first words hold the clip's first frame before it). The held-out takes
-# are 2 to 9 s long (median 2.2 s), so that start-up is a good part of a clip; the goals are
-# read on "stream".
+# "live-from-start": ``serve`` started on the clip itself: its first words hold the clip's
+# first frame before it, and the first frame is shown restyled (``BlendSettings.start_restyled``;
+# a fade-in over the first half second until 2026-11-28). The held-out takes are 2 to 9 s long
+# (median 2.2 s), so a stream's start is a good part of a clip; the goals are read on "stream".
 SETTINGS = (("stream", False, 0), ("live-from-start", True, 0))
 
 

@@ -66,7 +66,7 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
     ``roots`` (T, 3) are given, root positions; any T >= 1.
     ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
     mirrored padding, so the result is frame for frame what the daemon sends for the same
-    motion (the fade-in from pass-through over the first ``crossfade_frames``). With the root
+    motion (its first words hold the first frame before it). With the root
     positions ``roots`` (T, 3) and the humanoid ``skeleton`` the planted feet are locked
     and the pelvis height set (``motion.footlock``, with ``contacts``, its
     ``ContactSettings``, or the defaults the daemon runs), as the daemon does; without them

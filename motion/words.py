@@ -8,10 +8,10 @@ The walk of a frame, frame indices counted from the start of a performer's strea
   e = 59 + phase + k hop (phase 0 unless the daemon staggers performers), from the first
   such frame at or after the stream's start (``first_word_end``): before its first frame
   a stream is taken to have held that frame, as a performer standing in the first pose
-  would, so the first words are that pose held and then the motion so far. The restyle
-  fades in from the first frame: waiting for a whole word of real frames left the first
-  1.4 s unrestyled, most of a short take (models/checkpoints/MODEL_CARD.md, "A stream's
-  start").
+  would, so the first words are that pose held and then the motion so far, and the first
+  frame is shown restyled: waiting for a whole word of real frames left the first 1.4 s
+  unrestyled, most of a short take, and a fade-in from the first frame the first 0.5 s
+  (models/checkpoints/MODEL_CARD.md, "A stream's start").
 * The restyler turns each word into a restyled word (elsewhere, possibly late).
 * ``SeamBlender`` renders output frame t at time t + delay (delay >= hop frames). Frame t
   is served by the first word whose end e >= t (so e <= t + hop - 1). The first frame a
@@ -34,10 +34,13 @@ end of a clip is padded the same way).
 
 Pass-through and restyled output are mixed by ``mix`` in [0, 1]: it moves towards the
 requested intensity (0 in bypass, when no word is available yet or when a word is late)
-by at most 1 / crossfade_frames per frame, so starting, stopping, late results, bypass
-and intensity changes all fade instead of popping. While no word is available the
-restyled pose is approximated by carrying the last restyle residual (restyled * input^-1)
-onto the live input, so the fade-out has something continuous to fade from.
+by at most 1 / crossfade_frames per frame, so stopping, late results, bypass and
+intensity changes all fade instead of popping. A stream's first frame has nothing before
+it to pop from: it is shown restyled when its word is there (``start_restyled``; the
+held-out takes are 2-9 s long, and a half-second fade-in was a good part of one). While
+no word is available the restyled pose is approximated by carrying the last restyle
+residual (restyled * input^-1) onto the live input, so the fade-out has something
+continuous to fade from.
 """
 
 from __future__ import annotations
@@ -127,6 +130,10 @@ class BlendSettings:
     delay: int | None = None  # frames between a frame's arrival and its output; >= hop
     decay_frames: float | None = None  # time constant of the seam offset; 0 disables blending
     crossfade_frames: int = 30  # pass-through <-> restyled fades
+    # A stream's first frame is shown restyled when its word is there (the correction's
+    # low-pass and the lock's pelvis height start settled on it: nothing was shown before
+    # it to fade from); False: it fades in from pass-through over ``crossfade_frames``.
+    start_restyled: bool = True
     correction_tau: float = CORRECTION_TAU  # low-pass of the correction after blending; 0 = off
     word_length: int = WORD_LENGTH
     # Shifts the word grid by this many frames (0 <= phase < hop). The daemon staggers
@@ -149,8 +156,11 @@ class BlendSettings:
     @property
     def first_fade_end(self) -> int:
         """The stream frame by which its first fade from pass-through to the restyle has
-        ended: the first word serves frame 0, so the crossfade's length, and the
-        correction's low-pass after it (a triple pole: within 1.4 % of a step 8 tau on)."""
+        ended: none when it starts restyled; else the first word serves frame 0, so the
+        crossfade's length, and the correction's low-pass after it (a triple pole: within
+        1.4 % of a step 8 tau on)."""
+        if self.start_restyled:
+            return 0
         return self.crossfade_frames + int(np.ceil(8 * self.correction_tau))
 
 
@@ -223,6 +233,7 @@ class SeamBlender:
         self._last_input: np.ndarray | None = None
         self._omega = 0.0 if not settings.decay_frames else 1.0 / float(settings.decay_frames)
         self.mix = 0.0
+        self._first_frame = True  # nothing shown yet (``BlendSettings.start_restyled``)
         self.late_frames = 0
 
     def add_word(self, end: int, restyled: np.ndarray, continuous: bool = False) -> None:
@@ -312,6 +323,10 @@ class SeamBlender:
         """Move ``mix`` towards its target by at most one crossfade step per frame:
         1.0 (restyled), 0.0 (input) or the per-frame mix (n,) to slerp with."""
         target = min(max(float(intensity), 0.0), 1.0) if available else 0.0
+        if self._first_frame:
+            self._first_frame = False
+            if self.settings.start_restyled:
+                self.mix = target
         if self.mix == target and target in (0.0, 1.0):  # the common, settled case
             return target
         step = 1.0 / self.settings.crossfade_frames

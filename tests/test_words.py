@@ -97,22 +97,38 @@ def test_output_follows_the_restyled_words_between_seams(hop):
     assert rot.angle_between(out[300:], expected[300:]).max() < 1e-3
 
 
-def test_start_fades_in_from_the_first_frame_without_a_jump():
-    """A stream's first words hold its first frame before it, so the restyle fades in from
-    frame 0 and is whole after the crossfade (before: pass-through for the first word, the
-    fade ending at frame 65 here, a third of the clip)."""
+def test_a_stream_is_restyled_from_its_first_frame_without_a_transient():
+    """A stream's first words hold its first frame before it, so frame 0 has a word, and
+    nothing was shown before it: it is shown restyled, the correction's low-pass settled on
+    it (growing in from nothing, a 52-degree correction came in at up to 7 degrees a frame)."""
     motion = smooth_motion(200)
-    settings = BlendSettings(hop=15, crossfade_frames=20)
+    constant = rot.from_euler(np.full((J, 3), 30.0), "ZXY")
+    out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w),
+                         BlendSettings(hop=15)).rotations
+    expected = keep_hinges(motion, rot.multiply(np.broadcast_to(constant, motion.shape), motion))
+    assert rot.angle_between(out[:60], expected[:60]).max() < 1e-6  # whole from frame 0
+    jumps = rot.angle_between(out[1:], out[:-1]).max(axis=1)
+    natural = rot.angle_between(expected[1:], expected[:-1]).max(axis=1)
+    assert np.abs(jumps - natural).max() < 1e-6
+
+
+def test_a_stream_asked_to_fade_in_fades_from_the_first_frame_without_a_jump():
+    """``start_restyled=False``: the restyle fades in from frame 0 and is whole after the
+    crossfade (before the first words held the first frame: pass-through for the first word,
+    the fade ending at frame 65 here, a third of the clip)."""
+    motion = smooth_motion(200)
+    settings = BlendSettings(hop=15, crossfade_frames=20, start_restyled=False)
     constant = rot.from_euler(np.full((J, 3), 30.0), "ZXY")
     out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w), settings).rotations
     expected = keep_hinges(motion, rot.multiply(np.broadcast_to(constant, motion.shape), motion))
-    assert rot.angle_between(out[0], motion[0]).max() < 52.0 / 20 + 1e-6  # one crossfade step in
+    step = rot.angle_between(constant, rot.identity(())).max() / 20  # 30 deg about 3 axes (56 deg) over 20 frames
+    assert rot.angle_between(out[0], motion[0]).max() < step + 1e-6  # one crossfade step in
     assert rot.angle_between(out[1], motion[1]).max() > 0.3  # the fade has begun at once
     whole = settings.first_fade_end  # the crossfade and the correction's low-pass after it
     assert rot.angle_between(out[whole:60], expected[whole:60]).max() < 0.1
     jumps = rot.angle_between(out[1:], out[:-1]).max(axis=1)
     natural = rot.angle_between(motion[1:], motion[:-1]).max(axis=1)
-    assert (jumps - natural).max() < 52.0 / 20 + 1.0  # 30 deg about 3 axes (~52 deg) over 20 frames
+    assert (jumps - natural).max() < step + 1.0
 
 
 def test_late_word_fades_to_pass_through_and_back_without_pop():
