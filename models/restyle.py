@@ -23,7 +23,7 @@ import numpy as np
 from stylecast.motion import rotations as rot
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
-from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH, Restyled
+from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH, Restyled, start_of
 
 
 def mirror_indices(num_frames: int, before: int, after: int) -> np.ndarray:
@@ -61,7 +61,8 @@ def word_switches(num_frames: int, hop: int, crossfade_frames: int = CROSSFADE_F
 def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_HOP, intensity: float = 1.0,
                       crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
                       live: bool = False, roots: np.ndarray | None = None, skeleton=None,
-                      correction_tau: float | None = None, contacts=None) -> Restyled:
+                      correction_tau: float | None = None, contacts=None,
+                      start_restyled: bool = True) -> Restyled:
     """Humanoid rotations (T, J, 4) at 60 fps -> restyled rotations (T, J, 4) and, where
     ``roots`` (T, 3) are given, root positions; any T >= 1.
     ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
@@ -70,7 +71,8 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
     positions ``roots`` (T, 3) and the humanoid ``skeleton`` the planted feet are locked
     and the pelvis height set (``motion.footlock``, with ``contacts``, its
     ``ContactSettings``, or the defaults the daemon runs), as the daemon does; without them
-    they are not."""
+    they are not. ``start_restyled``: a live stream's first frame shown restyled, not faded
+    in (``BlendSettings.start_restyled``; the model's own is ``words.start_of``)."""
     from stylecast.motion.footlock import ContactSettings, FootLock
     from stylecast.motion.words import BlendSettings, restyle_stream
 
@@ -78,6 +80,7 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
         raise UserError(f"--hop must be between 1 and {WORD_LENGTH} frames, got {hop}")
     T = len(rotations)
     settings = BlendSettings(hop=hop, crossfade_frames=crossfade_frames, decay_frames=decay_frames,
+                             start_restyled=start_restyled,
                              **({} if correction_tau is None else {"correction_tau": correction_tau}))
     before, after = (0, 0) if live else padding(hop, settings.crossfade_frames, settings.decay_frames)
     idx = mirror_indices(T, before, after)
@@ -126,7 +129,8 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
     humanoid = retarget.to_humanoid(clip)
     h60 = resample(humanoid, FPS)
     restyled60 = restyle_rotations(h60.rotations, restyler.restyle_words, hop, intensity, live=live,
-                                   roots=h60.root_positions, skeleton=h60.skeleton, contacts=contacts)
+                                   roots=h60.root_positions, skeleton=h60.skeleton, contacts=contacts,
+                                   start_restyled=start_of(restyler))
     out_fps = float(fps) if fps else clip.fps
     if abs(out_fps - clip.fps) < 1e-9:
         template, h_template = clip, humanoid

@@ -37,6 +37,10 @@ class MultiStyleRestyler(Restyler):
     # 69 -> 24 % (the model card, "The style's pace"). Read when a lock is built: a session
     # keeps its lock when its style changes live.
     feet_of_style = {"elderly": "input", "exhausted": "input"}
+    # Its first words, mostly the stream's first pose held, disagree more than the pair
+    # model's: shown at once (not faded in), arms and feet popped in the first 16 frames of
+    # held-out takes (worst clip 5-74x the input's largest one-frame jerk, 3.5-3.9x faded).
+    start_restyled = False
 
     def __init__(self, model, rep, metadata: dict, weights=None, path=None, intensity: float = 1.0):
         from .networks import batch_invariant

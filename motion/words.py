@@ -131,7 +131,7 @@ class BlendSettings:
     decay_frames: float | None = None  # time constant of the seam offset; 0 disables blending
     crossfade_frames: int = 30  # pass-through <-> restyled fades
     # A stream's first frame is shown restyled when its word is there (the correction's
-    # low-pass and the lock's pelvis height start settled on it: nothing was shown before
+    # low-pass starts settled on it, the pace on the first step: nothing was shown before
     # it to fade from); False: it fades in from pass-through over ``crossfade_frames``.
     start_restyled: bool = True
     correction_tau: float = CORRECTION_TAU  # low-pass of the correction after blending; 0 = off
@@ -162,6 +162,12 @@ class BlendSettings:
         if self.start_restyled:
             return 0
         return self.crossfade_frames + int(np.ceil(8 * self.correction_tau))
+
+
+def start_of(restyler) -> bool:
+    """``BlendSettings.start_restyled`` for a stream restyled by ``restyler``: the model's own
+    ``start_restyled`` where it names one, else True."""
+    return bool(getattr(restyler, "start_restyled", True))
 
 
 def _spring_at(offset: np.ndarray, c2: np.ndarray, omega, k) -> np.ndarray:

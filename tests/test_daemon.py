@@ -17,7 +17,7 @@ from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip
 from stylecast.motion.footlock import AUTO_FEET, FEET, LEG_INDEX, FootLock, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
-from stylecast.motion.words import BlendSettings, restyle_stream
+from stylecast.motion.words import BlendSettings, restyle_stream, start_of
 
 J = len(HUMANOID_BONES)
 CHECKPOINT = Path(__file__).resolve().parents[1] / "models" / "checkpoints" / "normal2exhausted.safetensors"
@@ -66,7 +66,8 @@ def offline(clip: Clip, restyler, hop: int, contacts=None):
 
     return restyle_rotations(clip.rotations, restyler.restyle_words, hop, crossfade_frames=30, live=True,
                              roots=clip.root_positions, skeleton=clip.skeleton,
-                             contacts=feet_for(AUTO_FEET, restyler) if contacts is None else contacts)
+                             contacts=feet_for(AUTO_FEET, restyler) if contacts is None else contacts,
+                             start_restyled=start_of(restyler))
 
 
 def test_restyle_live_is_the_shared_stream_code():

@@ -121,6 +121,28 @@ def test_the_performers_own_style_is_served_as_performed(tiny_multistyle):
     assert _largest_difference(_served(model, style="elderly"), as_performed) > 1e-2
 
 
+def test_a_stream_starts_as_its_model_ships_it_the_multistyle_models_faded_in(tiny_multistyle):
+    """A stream's first frame is shown restyled (``BlendSettings.start_restyled``), but the
+    multistyle model's first words, mostly the first pose held, popped when shown at once
+    (the model card), so its streams fade in; a performer who starts after a switch of model
+    starts as the new model ships it."""
+    def first_mix(daemon):
+        while daemon.sessions[0].frames_out < 1:
+            daemon.step()
+        return daemon.sessions[0].blender.mix
+
+    multistyle = make(Restyler.load(tiny_multistyle), style="elderly")
+    assert multistyle.settings.start_restyled is False
+    assert first_mix(multistyle) == pytest.approx(1 / multistyle.settings.crossfade_frames)  # one fade step
+    multistyle.close()
+    pair = make(StandInRestyler())
+    assert first_mix(pair) == 1.0  # restyled from the first frame
+    pair._pending_model = Restyler.load(tiny_multistyle)  # what /stylecast/model hands the clock's thread
+    pair._apply_control()
+    assert pair.settings.start_restyled is False
+    pair.close()
+
+
 def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multistyle, caplog):
     model = spy(tiny_multistyle)
     daemon = make(model, style="youthful")  # serve --style youthful: the model's own mix
