@@ -37,7 +37,7 @@ class Restyler:
     default_feet = "input"  # the foot lock of a pair model whose checkpoint names none (``feet``)
     # A stream's first frame shown restyled (``words.BlendSettings.start_restyled``): the
     # default's live-from-start reading rose to the running stream's, its start pops did not
-    # (the model card, "A stream's first frame").
+    # (the model card, "A stream's first frame, restyled").
     start_restyled = True
 
     def __init__(self, model, rep: R.Representation, metadata: dict, direction: str = "a2b",

@@ -39,7 +39,8 @@ class MultiStyleRestyler(Restyler):
     feet_of_style = {"elderly": "input", "exhausted": "input"}
     # Its first words, mostly the stream's first pose held, disagree more than the pair
     # model's: shown at once (not faded in), arms and feet popped in the first 16 frames of
-    # held-out takes (worst clip 5-74x the input's largest one-frame jerk, 3.5-3.9x faded).
+    # held-out takes (the worst clip's largest one-frame jerk up to 74x the input's, against
+    # 1.7-3.9x faded in; the model card, "A stream's first frame, restyled").
     start_restyled = False
 
     def __init__(self, model, rep, metadata: dict, weights=None, path=None, intensity: float = 1.0):

@@ -100,7 +100,7 @@ def test_output_follows_the_restyled_words_between_seams(hop):
 def test_a_stream_is_restyled_from_its_first_frame_without_a_transient():
     """A stream's first words hold its first frame before it, so frame 0 has a word, and
     nothing was shown before it: it is shown restyled, the correction's low-pass settled on
-    it (growing in from nothing, a 52-degree correction came in at up to 7 degrees a frame)."""
+    it (growing in from nothing, a 56-degree correction came in at up to 7 degrees a frame)."""
     motion = smooth_motion(200)
     constant = rot.from_euler(np.full((J, 3), 30.0), "ZXY")
     out = restyle_stream(motion, lambda w: rot.multiply(np.broadcast_to(constant, w.shape), w),
