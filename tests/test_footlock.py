@@ -14,6 +14,8 @@ from stylecast.motion.footlock import (CLEARANCE_BAND, CLEARANCE_SLACK, FEET, LE
                                       FootLock, PelvisHeight, StanceOffset, _hysteresis, kept_clearance, leg_chain,
                                       plan_locks, push_frames, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
+from stylecast.motion.smoothing import CorrectionFilter
+from stylecast.motion.words import BlendSettings
 
 J = len(HUMANOID_BONES)
 SK = humanoid_skeleton_default()
@@ -756,29 +758,41 @@ def test_a_planted_leg_bends_its_knee_the_way_the_restyle_turned_it(settings):
         # the input's ankles, about their own hip-ankle line, not the restyle's (1.75 degrees here)
 
 
-def test_a_stance_that_fades_in_with_the_stream_is_taken_then_kept():
-    """A stream starts in pass-through and fades the restyle in while the feet are down: the
-    stance follows until that first fade has ended, then only creeps."""
+@pytest.mark.parametrize("aim", [1.0, 0.5])
+def test_a_stream_fading_in_stands_in_the_restyled_stance_from_its_first_frame(aim):
+    """A stream starts in pass-through and fades the restyle in (towards the intensity
+    ``aim``) while the feet are down, as ``words.restyle_stream`` shows it: slerped by the
+    seam blender's mix, then the correction low-passed. The planted feet stand where the
+    restyle at that intensity puts them from the first frame, and never slide; following the
+    fading stance (the lead-in's free follow, the known-bad case) slides them."""
     roots, q = stepping(240)
     standing = np.tile(q[:1], (240, 1, 1))
     roots = np.tile(roots[:1], (240, 1))
-    angle = np.clip((np.arange(240) - 60) / 30, 0.0, 1.0) * 4.0  # the first word, then a fade ending at 90
-    out_in = spread(standing, angle)
+    settings = BlendSettings(hop=4, start_restyled=False)
+    mix = np.minimum(aim, np.arange(1, 241) / settings.crossfade_frames)
+    full = spread(standing, np.full(240, 4.0))
+    shown = rot.slerp(standing, full, np.broadcast_to(mix[:, None], standing.shape[:2]))
+    out_in = CorrectionFilter(J, settings.correction_tau).apply(standing, shown)
 
     def width(p):
         return np.abs(p[:, 0, 2, 0] - p[:, 1, 2, 0])
 
-    wanted = width(leg_chain(roots, out_in, SK.offsets)[0])
-    got = {}
-    for fade_in in (0, 91):
-        lock = FootLock.for_stream(SK, delay=5, settings=STANCE, fade_in=fade_in)
+    wanted = width(leg_chain(roots, spread(standing, np.full(240, 4.0 * aim)), SK.offsets)[0])
+    own = width(leg_chain(roots, standing, SK.offsets)[0])
+    assert wanted[0] - own[0] > 4.0 * aim  # a stance worth keeping
+    fade = settings.first_fade_end
+    slides, widths = {}, {}
+    for name, fade_in, lead_in in (("at the aim", fade, 0), ("following the fade", 0, fade), ("input's", 0, 0)):
+        lock = FootLock.for_stream(SK, delay=5, settings=STANCE, fade_in=fade_in,
+                                   fade_tau=settings.correction_tau, lead_in=lead_in, aim=aim)
         lock.push(roots, standing)
-        new_roots, out = lock.apply(0, roots, standing, out_in)
+        new_roots, out = lock.apply(0, roots, standing, out_in, mix)
         p = leg_chain(new_roots, out, SK.offsets)[0]
-        got[fade_in] = width(p)
-        assert horizontal_speed(p[92:, :, 2]).max() < STANCE.stance_rate + 1e-6  # still once settled
-    np.testing.assert_allclose(got[91][91:], wanted[91:], atol=0.05)  # the faded-in stance is taken
-    assert got[0][-1] < wanted[-1] - 5.0  # without the settling it would only have crept towards it
+        slides[name], widths[name] = horizontal_speed(p[:, :, 2]).max(), width(p)
+    np.testing.assert_allclose(widths["at the aim"], wanted, atol=0.1)  # the stance at the aim, from frame 0 on
+    assert slides["at the aim"] < STANCE.stance_rate + 1e-6  # and never slides
+    assert slides["following the fade"] > 0.05  # the known-bad cases: following the fade slides,
+    assert widths["input's"][fade] - own[fade] < (wanted[fade] - own[fade]) / 4  # and holding the input's keeps it
 
 
 def test_a_foot_lifted_slowly_through_the_hysteresis_band_is_found_alike_one_frame_at_a_time_and_whole():
