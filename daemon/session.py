@@ -118,14 +118,15 @@ class Session:
         self.blender = SeamBlender(settings, len(skeleton), phase=self.phase)
         # Planted feet of the input stay planted in the output (after the blender, as
         # offline ``restyle`` does); it looks ahead into the ``delay`` frames buffered.
-        self.feet = FootLock.for_stream(skeleton, settings.delay, contacts, fade_in=settings.first_fade_end)
+        self.feet = FootLock.for_stream(skeleton, settings.delay, contacts, fade_in=settings.first_fade_end,
+                                        fade_tau=settings.correction_tau)
         self._feet_frames: list = []  # (root, rotations) ingested, for the tick's one ``push_feet``
         self.smoothing = CorrectionFilter(len(skeleton), settings.correction_tau)
         self._inputs: deque = deque(maxlen=settings.delay + MAX_LAG + 2)  # (t, arrival, root, rot)
         self.frames_in = 0
         self.out_t: int | None = None  # next output frame index
         self.last_output: OutputFrame | None = None
-        self.intensity = 1.0
+        self._intensity = 1.0
         self.bypass = False
         # Style mix of a multi-style model (None: the model's own). A change moves the mix
         # from where it is to the new one over the crossfade, frame by frame; each word is
@@ -156,7 +157,17 @@ class Session:
         self._clock_offset: float | None = None
         self._burst = 0  # frames the last ingest brought
 
+    @property
+    def intensity(self) -> float:
+        return self._intensity
+
+    @intensity.setter
+    def intensity(self, value: float) -> None:
+        # A stream's first fade-in takes its stance at the share it heads for (``StanceOffset.aim``).
+        self._intensity = self.feet.stance.aim = float(value)
+
     # -- input side -------------------------------------------------------------------
+
     def ingest(self, now: float) -> list[tuple[int, np.ndarray]]:
         """Pull the source's new frames; return the words (end, word) they completed.
 

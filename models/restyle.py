@@ -92,7 +92,8 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
             # The stance (``--feet stance``) of a stream that has been running was taken
             # before the clip began: it follows the lead-in and settles on the first real frame.
             feet = FootLock.for_stream(skeleton, settings.delay, contacts or ContactSettings(),
-                                       fade_in=max(settings.first_fade_end, before))
+                                       fade_in=settings.first_fade_end, fade_tau=settings.correction_tau,
+                                       lead_in=before, aim=intensity)
     out = restyle_stream(padded, restyle_words, settings, intensity=intensity, roots=roots, feet=feet)
     real = slice(before, before + T)
     moved = None if out.roots is None else out.roots[real].copy()

@@ -58,13 +58,13 @@ def run_daemon(clip: Clip, restyler, hop: int = 15, performers: int = 1, tap=Non
     return daemon, frames
 
 
-def offline(clip: Clip, restyler, hop: int, contacts=None):
+def offline(clip: Clip, restyler, hop: int, contacts=None, intensity: float = 1.0):
     """What `stylecast restyle --live --hop HOP` computes for this humanoid motion:
     rotations and roots (the foot lock sets the pelvis height; ``contacts``: its settings,
     by default the model's own, as ``--feet auto``)."""
     from stylecast.models.restyle import restyle_rotations
 
-    return restyle_rotations(clip.rotations, restyler.restyle_words, hop, crossfade_frames=30, live=True,
+    return restyle_rotations(clip.rotations, restyler.restyle_words, hop, intensity, crossfade_frames=30, live=True,
                              roots=clip.root_positions, skeleton=clip.skeleton,
                              contacts=feet_for(AUTO_FEET, restyler) if contacts is None else contacts,
                              start_restyled=start_of(restyler))
@@ -245,11 +245,16 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root, feet)
     path = sorted((bandai_root / "dataset-2" / "data").glob("dataset-2_walk_normal_*.bvh.gz"))[0]
     motion = humanoid_motion(read_bvh(path))
     restyler = Restyler.load(str(CHECKPOINT))
-    for hop in (1, 15):
-        daemon, frames = run_daemon(motion, restyler, hop=hop, feet=feet)
+    # ...and a stream that fades in from pass-through (as the multi-style model's do) at an
+    # intensity below one: its stance is taken at the share the fade heads for.
+    faded = [(15, False, 0.8)] if feet == "stance" else []
+    for hop, start_restyled, intensity in [(1, True, 1.0), (15, True, 1.0)] + faded:
+        restyler.start_restyled = start_restyled
+        daemon, frames = run_daemon(motion, restyler, hop=hop, feet=feet, intensity=intensity)
         assert daemon.sessions[0].feet.locked_frames > 60  # a walk plants its feet: the lock is compared too
+        assert daemon.sessions[0].feet.stance.fade_until == (0 if start_restyled else daemon.settings.first_fade_end)
         live = np.stack([f.rotations for f in frames["p0"]])
-        expected = offline(resample(motion, 60.0), restyler, hop, feet_for(feet, restyler))  # the style's pace too
+        expected = offline(resample(motion, 60.0), restyler, hop, feet_for(feet, restyler), intensity)  # the pace too
         assert live.shape == expected.rotations.shape
         assert rot.angle_between(live, expected.rotations).max() < 1e-8  # degrees
         np.testing.assert_allclose(np.stack([f.root_position for f in frames["p0"]]), expected.roots, atol=1e-6)

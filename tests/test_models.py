@@ -317,16 +317,22 @@ def test_restyle_takes_the_stance_on_the_clips_first_frame_after_its_lead_in(mon
     seen = []
     original = FootLock.for_stream.__func__
 
-    def recording(cls, skeleton, delay, settings=None, fade_in=0):
-        seen.append(fade_in)
-        return original(cls, skeleton, delay, **({} if settings is None else {"settings": settings}), fade_in=fade_in)
+    def recording(cls, skeleton, delay, settings=None, fade_in=0, fade_tau=0.0, lead_in=0, aim=1.0):
+        seen.append((lead_in, fade_in, fade_tau, aim))
+        return original(cls, skeleton, delay, **({} if settings is None else {"settings": settings}),
+                        fade_in=fade_in, fade_tau=fade_tau, lead_in=lead_in, aim=aim)
 
     monkeypatch.setattr(FootLock, "for_stream", classmethod(recording))
     clip = rot.from_euler(np.zeros((80, J, 3)), "XZY")
     roots = np.tile([0.0, 90.0, 0.0], (80, 1))
-    for live in (False, True):
-        restyle_rotations(clip, lambda w: w, hop=4, live=live, roots=roots, skeleton=humanoid_skeleton_default())
-    assert seen == [padding(4)[0], BlendSettings(hop=4).first_fade_end]
+    for start_restyled in (True, False):
+        for live in (False, True):
+            restyle_rotations(clip, lambda w: w, hop=4, intensity=0.7, live=live, roots=roots,
+                              skeleton=humanoid_skeleton_default(), start_restyled=start_restyled)
+    faded = BlendSettings(hop=4, start_restyled=False)
+    tau = faded.correction_tau
+    assert seen == [(padding(4)[0], 0, tau, 0.7), (0, 0, tau, 0.7),  # a stream restyled from its first frame
+                    (padding(4)[0], faded.first_fade_end, tau, 0.7), (0, faded.first_fade_end, tau, 0.7)]
 
 
 def test_word_switches_follow_the_blender_grid():
