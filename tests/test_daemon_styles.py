@@ -164,6 +164,9 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         client.sendto(osc("/stylecast/mix", "active", 0.5, "feminine", 0.5, "bob"), ("127.0.0.1", port))
         client.sendto(osc("/stylecast/style", "sleepy"), ("127.0.0.1", port))
         assert wait_for(lambda: daemon.control.counts["accepted"] >= accepted + 3)
+        # A word submitted before the change may still be in the model's thread (it was, once,
+        # on a loaded machine): it belongs to before the change.
+        assert daemon.worker.wait_idle(5.0)
         before = len(model.calls)
         for _ in range(150):
             daemon.step()
