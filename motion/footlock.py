@@ -368,12 +368,12 @@ class StanceOffset:
         # heads for (``aim``, the stream's intensity): the restyled offset over the share shown
         # so far, low-passed as the correction is (``fade_tau``). So a planted foot stands in
         # the restyled stance from the first frame while the body fades in. Following the
-        # fading stance instead slid planted feet 2.6-3.5x the input's over held-out takes
-        # played live with the multi-style model (1.2-1.3x this way, and feminine and
-        # youthful read 7-30 points more, active 3-6 less: the model card's "The stance
-        # through a stream's fade-in"); holding the input's stance kept a standing
-        # performer's feet there for good (width 15.1 cm against the input's 15.2 and the
-        # restyle's 7-15, a feminine raise-up-both-hands take).
+        # fading stance instead slid planted feet 3.2-4.8x the input's over held-out takes
+        # played live with the multi-style model at the default hop (1.2-1.3x this way, for
+        # 4-8 points of active, masculine and youthful's style reading: the model card's
+        # "The stance through a stream's fade-in"); holding the input's stance kept a
+        # standing performer's feet there for good (width 15.1 cm against the input's 15.2
+        # and the restyle's 7-15, a feminine raise-up-both-hands take).
         self.fade_until = 0
         self.aim = 1.0
         self._shown: _TriplePole | None = None  # the shown share's low-pass (``for_fade``)
