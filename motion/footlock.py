@@ -436,8 +436,8 @@ class StanceOffset:
             return frame
         scale, out = self.aim / share, []
         for x, z, turn in frame:
-            length = ((x * x + z * z) ** 0.5) * scale
-            fit = scale * min(1.0, self.cap / length) if length > 0 else scale
+            length = (x * x + z * z) ** 0.5
+            fit = min(scale, self.cap / length) if length > 0 else scale
             out.append([x * fit, z * fit, min(max(turn * scale, -self.turn_cap), self.turn_cap)])
         return out
 

@@ -207,13 +207,13 @@ def test_after_a_one_off_stall_the_delay_comes_back_although_every_result_takes_
             self.calls += 1
             if self.daemon.ticks == 0:  # timed before the clock starts (``Daemon._calibrate``)
                 time.sleep(self.seconds)
-                return self.inner.restyle_words(words)
-            now = self.daemon.clock.now()
-            tick = self.daemon.ticks  # the submitting tick: the latest one due by now
-            while self.daemon.tick_time(tick) > now:
-                tick -= 1
-            ready = self.daemon.tick_time(tick) + self.seconds + (0.046 if self.calls == 40 else 0.0)
-            time.sleep(max(0.0, ready - now))
+            else:
+                now = self.daemon.clock.now()
+                tick = self.daemon.ticks  # the submitting tick: the latest one due by now
+                while self.daemon.tick_time(tick) > now:
+                    tick -= 1
+                ready = self.daemon.tick_time(tick) + self.seconds + (0.046 if self.calls == 40 else 0.0)
+                time.sleep(max(0.0, ready - now))
             return self.inner.restyle_words(words)
 
     def recovered(daemon, changes):
