@@ -8,7 +8,8 @@ import pytest
 
 from stylecast.motion import rotations as rot
 from stylecast.motion.bvh import read_bvh
-from stylecast.motion.hinges import HINGES, _swing_twist, keep_hinges
+from stylecast.motion import hinges
+from stylecast.motion.hinges import HINGES, STRAIGHT_EASE, _swing_twist, eased_bend, keep_hinges
 from stylecast.motion.humanoid import HUMANOID_BONES, Retarget
 from stylecast.motion.resample import resample
 
@@ -86,6 +87,82 @@ def test_a_joint_bent_past_straight_stops_at_straight_or_at_the_input(walk):
     over = turned(straight, hinge.bone, hinge.flexion, -hinge.bent * 3.0)
     flexion, _, _ = parts(keep_hinges(over, past)[:, j], hinge)
     np.testing.assert_allclose(flexion, -hinge.bent * 3.0, atol=1e-6)
+
+
+def hard_stop(bend_in, bend_out):
+    """The previous release's rule, a known-bad case: the restyle's flexion, cut at straight."""
+    return np.maximum(bend_out, np.minimum(bend_in, 0.0))
+
+
+def test_a_flexion_straightened_past_its_input_eases_to_straight_with_a_continuous_slope():
+    bend_in = np.radians(10.0)
+    wanted = np.linspace(np.radians(-20.0), np.radians(20.0), 40001)  # what the restyle asks for
+    for rule, continuous in ((eased_bend, True), (hard_stop, False)):
+        kept = rule(np.full_like(wanted, bend_in), wanted)
+        assert kept.min() >= 0.0  # never past straight: the input is not
+        slope = np.diff(kept) / np.diff(wanted)
+        assert (np.abs(np.diff(slope)).max() < 1e-3) == continuous, rule.__name__  # a corner: the slope jumps by 1
+    kept = eased_bend(np.full_like(wanted, bend_in), wanted)
+    exact = wanted >= (1.0 - STRAIGHT_EASE) * bend_in  # takes away less than STRAIGHT_EASE of the bend
+    np.testing.assert_array_equal(kept[exact], wanted[exact])
+    assert np.all(kept[~exact] > wanted[~exact])
+    # The input's own flexion comes back unchanged, straight and past straight included.
+    own = np.radians(np.array([-3.0, 0.0, 0.5, 10.0, 90.0]))
+    np.testing.assert_array_equal(eased_bend(own, own), own)
+    # Past straight in the input: the restyle may not take it further, and may bend it.
+    np.testing.assert_array_equal(eased_bend(own[:1], own[:1] - 0.1), own[:1])
+    np.testing.assert_array_equal(eased_bend(own[:1], own[:1] + 0.1), own[:1] + 0.1)
+
+
+def test_a_knee_restyled_straighter_than_its_input_turns_at_straight_without_a_corner():
+    """A knee that extends to straight at 1.5 degrees a frame and bends again (a heel strike),
+    restyled 5 degrees straighter: the hard stop held it straight for 7 frames, stopping it
+    from 1 degree a frame within one; eased, its speed changes by under 0.4 degrees a frame
+    from one frame to the next."""
+    hinge = next(h for h in HINGES if h.bone == "LeftLowerLeg")
+    j = HUMANOID_BONES.index(hinge.bone)
+    flexion = np.abs(np.arange(-20, 21)) * 1.5  # degrees: straight at frame 20 alone
+    bent = np.zeros((len(flexion), len(HUMANOID_BONES), 3))
+    bent[:, j, hinge.flexion] = np.radians(hinge.bent * flexion)
+    inputs = rot.exp_map(bent)
+    restyled = turned(inputs, hinge.bone, hinge.flexion, -hinge.bent * 5.0)
+    corners = {}
+    for rule in (eased_bend, hard_stop):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(hinges, "eased_bend", rule)
+            kept = hinge.bent * parts(keep_hinges(inputs, restyled)[:, j], hinge)[0]
+        assert kept.min() > -1e-9  # never past straight
+        np.testing.assert_allclose(kept[:12], flexion[:12] - 5.0, atol=1e-6)  # far from straight: the restyle's
+        corners[rule] = np.abs(np.diff(kept, 2)).max()
+    assert corners[eased_bend] < 0.4
+    assert corners[hard_stop] > 0.9
+
+
+def test_a_restyle_that_straightens_an_arm_does_not_pop_it(bandai_root):
+    """The multistyle model made youthful, a held-out right-hand raise through the stream with
+    its foot lock: the raised arm's elbow straightened past the input's and held straight
+    popped the hand at 2.6x the input's largest one-frame jerk; eased, it stays within 1.5x."""
+    from stylecast.models import metrics as M
+    from stylecast.models.restyle import restyle_rotations
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.footlock import AUTO_FEET, feet_for
+    from stylecast.motion.words import start_of
+
+    clip = read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_raise-up-right-hand_normal_023.bvh.gz")
+    humanoid = resample(Retarget.for_clip(clip).to_humanoid(clip), 60.0)
+    inp, roots = humanoid.rotations.astype(np.float64), humanoid.root_positions.astype(np.float64)
+    r = Restyler.load("multistyle").with_performer_style("normal").for_target("youthful")
+    jerk_in = M.jerk(M.world_positions(inp, roots, humanoid.skeleton))
+
+    def pops():
+        out, moved = restyle_rotations(inp, r.restyle_words, contacts=feet_for(AUTO_FEET, r), roots=roots,
+                                       skeleton=humanoid.skeleton, start_restyled=start_of(r))
+        return M.peak_jerk_ratio(jerk_in, M.jerk(M.world_positions(out, moved, humanoid.skeleton)))
+
+    assert pops() < 1.5
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(hinges, "eased_bend", hard_stop)
+        assert pops() > 2.0
 
 
 def test_the_stream_keeps_a_restyle_s_elbows_on_their_hinge(walk):
