@@ -9,7 +9,7 @@ import pytest
 from stylecast.motion import rotations as rot
 from stylecast.motion.bvh import read_bvh
 from stylecast.motion import hinges
-from stylecast.motion.hinges import HINGES, STRAIGHT_EASE, _swing_twist, eased_bend, keep_hinges
+from stylecast.motion.hinges import EASE_BAND, EASE_SHARE, HINGES, _swing_twist, eased_bend, keep_hinges
 from stylecast.motion.humanoid import HUMANOID_BONES, Retarget
 from stylecast.motion.resample import resample
 
@@ -103,9 +103,11 @@ def test_a_flexion_straightened_past_its_input_eases_to_straight_with_a_continuo
         slope = np.diff(kept) / np.diff(wanted)
         assert (np.abs(np.diff(slope)).max() < 1e-3) == continuous, rule.__name__  # a corner: the slope jumps by 1
     kept = eased_bend(np.full_like(wanted, bend_in), wanted)
-    exact = wanted >= (1.0 - STRAIGHT_EASE) * bend_in  # takes away less than STRAIGHT_EASE of the bend
+    exact = wanted >= min(EASE_SHARE * bend_in, EASE_BAND)  # far enough from straight
     np.testing.assert_array_equal(kept[exact], wanted[exact])
     assert np.all(kept[~exact] > wanted[~exact])
+    # Far from straight a restyle straightens a joint as much as it likes (an elbow 104 -> 14 degrees).
+    np.testing.assert_array_equal(eased_bend(np.radians([104.0]), np.radians([14.0])), np.radians([14.0]))
     # The input's own flexion comes back unchanged, straight and past straight included.
     own = np.radians(np.array([-3.0, 0.0, 0.5, 10.0, 90.0]))
     np.testing.assert_array_equal(eased_bend(own, own), own)
