@@ -15,10 +15,11 @@ axis, the swing as a rotation vector (perpendicular to the bone), and keeps from
 restyle only what the joint can do: the flexion, and the forearm's twist. The rest (the
 sideways bend, a knee's twist) is the input's, so an input that is no hinge (a tracker
 solve, another rig) keeps its own, and the flexion may not pass straight unless the input
-does, then no further than the input, easing towards straight where the restyle would
-straighten the joint more than its input (``eased_bend``). Per frame and stateless: ``restyle`` and ``serve``
-run it on the same frames after the correction low-pass, before the foot lock, whose leg
-IK folds each knee about the same axis (``footlock.solve_legs``).
+does, then no further than the input; where the restyle straightens a joint more than its
+input, the flexion eases into straight rather than stopping there (``eased_bend``). Per
+frame and stateless: ``restyle`` and ``serve`` run it on the same frames after the
+correction low-pass, before the foot lock, whose leg IK folds each knee about the same
+axis (``footlock.solve_legs``).
 """
 
 from __future__ import annotations

@@ -118,9 +118,9 @@ def test_a_flexion_straightened_past_its_input_eases_to_straight_with_a_continuo
 
 def test_a_knee_restyled_straighter_than_its_input_turns_at_straight_without_a_corner():
     """A knee that extends to straight at 1.5 degrees a frame and bends again (a heel strike),
-    restyled 5 degrees straighter: the hard stop held it straight for 7 frames, stopping it
-    from 1 degree a frame within one; eased, its speed changes by under 0.4 degrees a frame
-    from one frame to the next."""
+    restyled 5 degrees straighter: the hard stop stopped it dead from 1 degree a frame and
+    held it straight; eased, its speed changes by under 0.4 degrees a frame from one frame
+    to the next."""
     hinge = next(h for h in HINGES if h.bone == "LeftLowerLeg")
     j = HUMANOID_BONES.index(hinge.bone)
     flexion = np.abs(np.arange(-20, 21)) * 1.5  # degrees: straight at frame 20 alone
