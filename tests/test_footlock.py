@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import (CLEARANCE_BAND, CLEARANCE_SLACK, FEET, LEG_INDEX, LEGS, ContactSettings,
-                                      FootLock, PelvisHeight, StanceOffset, _hysteresis, kept_clearance, leg_chain,
-                                      plan_locks, push_frames, solve_legs, solve_lock_jobs)
+from stylecast.motion.footlock import (AUTO_FEET, CLEARANCE_BAND, CLEARANCE_SLACK, FEET, LEG_INDEX, LEGS,
+                                      ContactSettings, FootLock, PelvisHeight, StanceOffset, _hysteresis,
+                                      _lock_weights, feet_for, kept_clearance, leg_chain, lock_kernel, plan_locks,
+                                      push_frames, solve_legs, solve_lock_jobs)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.smoothing import CorrectionFilter
 from stylecast.motion.words import BlendSettings
@@ -636,6 +637,87 @@ def test_the_lock_sets_in_and_lets_go_with_zero_slope():
     np.testing.assert_allclose(w[end:end + r], (u * u * (3 - 2 * u))[::-1])
 
 
+def test_a_longer_release_lets_go_over_its_own_frames_and_sets_in_as_before():
+    """``release`` (the stance's 8 frames): after a contact the weight falls by a smoothstep
+    over those frames, looking only back; before one it rises over the ramp as before."""
+    short, long = FootLock(SK), FootLock(SK, settings=ContactSettings(release=8))
+    roots, q = stepping(240)
+    right = short.push(roots, q)[:, 1]
+    long.push(roots, q)
+    start = int(np.flatnonzero(right[1:] & ~right[:-1])[0]) + 1
+    end = start + int(np.argmin(right[start:]))
+    w, w_short = long.weights(0, 240)[:, 1], short.weights(0, 240)[:, 1]
+    u = np.arange(1, 9) / 9
+    np.testing.assert_allclose(w[end:end + 8], (u * u * (3 - 2 * u))[::-1])
+    assert w[end + 8] == 0.0 < w_short[end + 3] < w[end + 3]
+    np.testing.assert_array_equal(w[start - 6:start + 1], w_short[start - 6:start + 1])  # no further ahead
+
+
+def test_a_swing_shorter_than_the_lock_blends_has_no_corner():
+    """A foot lifted for fewer frames than the release and ramp together: letting go of one
+    contact and setting into the next overlap, and the weight must stay smooth there. The
+    larger of the two (the known-bad join) has a corner where they cross: a foot set down 7
+    frames into a clip, its lock over the mirrored lead-in let go over 8 frames, popped the
+    toes at 2.8x the input's largest one-frame jerk (a held-out walk made active)."""
+    contacts = np.zeros(40)
+    contacts[:10] = contacts[18:] = 1.0  # lifted for 8 frames; release 8 + ramp 4 overlap
+    kernel = lock_kernel(4, 8, 8)
+    windows = np.lib.stride_tricks.sliding_window_view(np.concatenate([np.ones(8), contacts, np.ones(4)]), 13)
+    joined = _lock_weights(windows, kernel, 8)
+    larger = (windows * kernel).max(axis=-1)
+    assert joined.min() > 0.0 and np.all(joined[:10] == 1.0) and np.all(joined[18:] == 1.0)
+    slope_change = lambda w: np.abs(np.diff(w, 2)).max()
+    assert slope_change(joined) < 0.2 < slope_change(larger)
+
+
+def test_a_stance_let_go_over_8_frames_does_not_snap_a_lifting_foot_to_its_swing(bandai_root):
+    """The multistyle model made active, a held-out turning walk through the stream with
+    its stance lock: by lift-off the restyled swing foot is up to ~17 cm from where the
+    stance held it, and let go over 4 frames (the known-bad case) the foot jumped that gap:
+    the feet's largest one-frame jerk 2.1x the input's; over the stance's 8 frames 1.4x."""
+    from stylecast.models import metrics as M
+    from stylecast.models.restyle import restyle_rotations
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.bvh import read_bvh
+    from stylecast.motion.humanoid import Retarget
+    from stylecast.motion.resample import resample
+    from stylecast.motion.words import start_of
+
+    clip = read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_walk-turn-right_normal_010.bvh.gz")
+    humanoid = resample(Retarget.for_clip(clip).to_humanoid(clip), 60.0)
+    inp, roots = humanoid.rotations.astype(np.float64), humanoid.root_positions.astype(np.float64)
+    r = Restyler.load("multistyle").with_performer_style("normal").for_target("active")
+    own = feet_for(AUTO_FEET, r)  # the model's stance lock at the style's pace
+    assert own.stance_cap == STANCE.stance_cap and own.release == 8
+    feet = [HUMANOID_BONES.index(f"{side}{bone}") for side in ("Left", "Right") for bone in ("Foot", "Toes")]
+    jerk_in = M.jerk(M.world_positions(inp, roots, humanoid.skeleton))[:, feet]
+
+    def feet_pops(release):
+        out, moved = restyle_rotations(inp, r.restyle_words, contacts=replace(own, release=release), roots=roots,
+                                       skeleton=humanoid.skeleton, start_restyled=start_of(r))
+        return M.jerk(M.world_positions(out, moved, humanoid.skeleton))[:, feet].max() / jerk_in.max()
+
+    assert feet_pops(8) < 1.6
+    assert feet_pops(4) > 1.9
+
+
+def test_the_pelvis_stands_on_the_feet_down_not_on_a_foot_the_release_still_holds():
+    """The hips drop by the gap of the feet that are down: a contact within the ramp. A
+    foot that a longer release still holds is lifting (counted, its gap dropped the hips and
+    popped a knee: the pair default's worst held-out clip, 1.2 -> 2.6x the input's largest
+    one-frame jerk), so the pelvis of a lock released over 8 frames is the 4-frame one's."""
+    roots, q = stepping(240)
+    out = crouched(q)
+    heights = []
+    for release in (None, 8):
+        lock = FootLock(SK, settings=replace(ON_INPUT_ANKLES, release=release))
+        lock.push(roots, q)
+        new_roots, locked = lock.apply(0, roots[:-4], q[:-4], out[:-4])
+        heights.append(new_roots[:, 1])
+    np.testing.assert_array_equal(heights[0], heights[1])
+    assert np.ptp(heights[0]) > 1.0  # the hips did move with the feet down
+
+
 def test_a_rig_that_is_not_the_humanoid_is_refused():
     from stylecast.motion.skeleton import Skeleton
 
@@ -840,17 +922,20 @@ def test_a_foot_lifted_slowly_through_the_hysteresis_band_is_found_alike_one_fra
     assert whole[1:, 0].all()  # the standing foot never lets go
 
 
-@pytest.mark.parametrize("ramps", [(4, 4, 4), (4, 2, 0)])
-def test_locks_planned_in_one_call_plan_what_each_plans_alone(ramps):
+@pytest.mark.parametrize("ramps, releases", [((4, 4, 4), (None, None, None)), ((4, 4, 4), (8, None, 2)),
+                                             ((4, 2, 0), (None, None, None))])
+def test_locks_planned_in_one_call_plan_what_each_plans_alone(ramps, releases):
     """The daemon plans every performer's frame of a tick in one call (``plan_locks``: the
     lock weights of all in one pass); each job must be the one ``FootLock.plan`` makes,
     weights through touch-downs and lift-offs, floor and the input's feet, past the
-    trimming of the histories (locks of different ramps plan one by one)."""
+    trimming of the histories (locks of different ramps plan one by one; different
+    releases, as ``--feet input`` and ``stance`` have, in the same pass)."""
     roots, q = stepping(400)
     out = restyled(q)
     sizes = (1.0, 0.85, 1.1)
-    together = [FootLock(SK.with_offsets(SK.offsets * k), ramp=r) for k, r in zip(sizes, ramps)]
-    alone = [FootLock(SK.with_offsets(SK.offsets * k), ramp=r) for k, r in zip(sizes, ramps)]
+    settings = [ContactSettings(release=r) for r in releases]
+    together = [FootLock(SK.with_offsets(SK.offsets * k), ramp=r, settings=c) for k, r, c in zip(sizes, ramps, settings)]
+    alone = [FootLock(SK.with_offsets(SK.offsets * k), ramp=r, settings=c) for k, r, c in zip(sizes, ramps, settings)]
     scaled = [roots * [1, k, 1] for k in sizes]
     for t in range(len(q)):
         for a, b, r in zip(together, alone, scaled):
@@ -862,7 +947,8 @@ def test_locks_planned_in_one_call_plan_what_each_plans_alone(ramps):
         jobs = plan_locks([(lock, k, r[k], q[k], out[k], None) for lock, r in zip(together, scaled)])
         for job, lock, r in zip(jobs, alone, scaled):
             expected = lock.plan(k, r[k:k + 1], q[k:k + 1], out[k:k + 1])
-            for name in ("roots", "inputs", "outputs", "weights", "floor", "own"):
+            for name in ("roots", "inputs", "outputs", "weights", "down", "floor", "own"):
                 np.testing.assert_array_equal(getattr(job, name), getattr(expected, name), err_msg=name)
     assert all(0 < lock.planted_frames < 2 * len(q) for lock in together)
-    assert len({lock._base for lock in together}) == 1 and together[0]._base > 0  # the histories were trimmed alike
+    assert all(lock._base > 0 for lock in together)  # the histories were trimmed
+    assert len({lock._base for lock, c in zip(together, releases) if c is None}) == 1  # alike where alike
