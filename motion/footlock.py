@@ -15,9 +15,10 @@ ball of the foot has been over the last ``floor_window`` frames (live sources do
 where their floor is).
 
 Lock (``FootLock.apply``, per output frame t): the leg weight w(t) rises to 1 over
-``ramp`` frames before a contact and falls over ``ramp`` frames after it (a dilation of
-the contacts by a smoothstepped triangle, which looks ``ramp`` frames ahead: the daemon
-has ``delay`` frames of input beyond the frame it renders, so ``ramp`` <= delay). Where w > 0 the
+``ramp`` frames before a contact and falls over ``release`` frames after it (a dilation of
+the contacts by a smoothstepped triangle each side, which looks ``ramp`` frames ahead: the
+daemon has ``delay`` frames of input beyond the frame it renders, so ``ramp`` <= delay; the
+release looks only back, so it may be longer: the stance's is 8). Where w > 0 the
 hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle (or, with
 the stance kept, beside it) and the knee bends the way the restyled knee points off its own
 hip-ankle line (a knee is a hinge that folds forward of its thigh, which decides where a
@@ -230,11 +231,11 @@ class ContactSettings:
 # The stance lets go over 8 frames: its planted foot stands up to the cap from the input's
 # while the restyled swing foot is elsewhere again by lift-off, and over 4 frames the foot
 # jumped that gap (the multistyle model's held-out active walks: a toe's one-frame jerk 5x
-# the input's; active's jerk ratio 1.132 over held-out takes, 1.094 over 8 frames, youthful
-# 1.081 -> 1.057; for 4 points of active's style on the worst conv judge, the others within a
+# the input's; active's jerk ratio 1.132 over held-out takes, 1.093 over 8 frames, youthful
+# 1.081 -> 1.056; for 4 points of active's style on the worst conv judge, the others within a
 # point or better: the model card's "The stance lets go over 8 frames"). The input lock keeps
-# 4: with 8 the pair default read exhausted 0.8 points less on the worst judge and popped
-# more (the worst held-out clip 1.21 -> 1.43x the input's largest one-frame jerk).
+# 4: with 8 the pair default read exhausted 0.8 points less on its worst conv judge, where
+# it stands at the bar (its jerk was 1.008 already).
 FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=8.0, pelvis_tau=8.0, release=8)}
 AUTO_FEET = "auto"  # the model's own choice (its ``feet``), else "input"
 
@@ -1095,8 +1096,8 @@ def plan_locks(items: list) -> list["LockJob"]:
 class LockJob:
     """One lock's output frames t0 .. t0+n-1 from ``FootLock.plan`` to ``solve_lock_jobs``:
     input ``roots`` (n, 3), input and restyled rotations (n, J, 4), lock ``weights`` (n, 2),
-    which feet are ``down`` for the pelvis (n, 2), the ``floor`` (n,), the restyle's ``mix`` (n,) or None, and the input's feet ``own`` (n,
-    ankle/ball, foot, xyz) as pushed. Solving fills in ``new_roots`` (the pelvis height and
+    which feet are ``down`` for the pelvis (n, 2), the ``floor`` (n,), the restyle's ``mix``
+    (n,) or None, and the input's feet ``own`` (n, ankle/ball, foot, xyz) as pushed. Solving fills in ``new_roots`` (the pelvis height and
     the pace set) and ``result``, the locked rotations."""
 
     lock: FootLock
