@@ -658,7 +658,7 @@ def test_a_swing_shorter_than_the_lock_blends_has_no_corner():
     contact and setting into the next overlap, and the weight must stay smooth there. The
     larger of the two (the known-bad join) has a corner where they cross: a foot set down 7
     frames into a clip, its lock over the mirrored lead-in let go over 8 frames, popped the
-    toes at 2.8x the input's largest one-frame jerk (a held-out walk made active)."""
+    toes at 2.9x the input's largest one-frame jerk (a held-out walk made active)."""
     contacts = np.zeros(40)
     contacts[:10] = contacts[18:] = 1.0  # lifted for 8 frames; release 8 + ramp 4 overlap
     kernel = lock_kernel(4, 8, 8)
@@ -950,5 +950,4 @@ def test_locks_planned_in_one_call_plan_what_each_plans_alone(ramps, releases):
             for name in ("roots", "inputs", "outputs", "weights", "down", "floor", "own"):
                 np.testing.assert_array_equal(getattr(job, name), getattr(expected, name), err_msg=name)
     assert all(0 < lock.planted_frames < 2 * len(q) for lock in together)
-    assert all(lock._base > 0 for lock in together)  # the histories were trimmed
-    assert len({lock._base for lock, c in zip(together, releases) if c is None}) == 1  # alike where alike
+    assert len({lock._base for lock in together}) == 1 and together[0]._base > 0  # the histories were trimmed alike
