@@ -41,7 +41,12 @@ def diff(x: torch.Tensor) -> torch.Tensor:
 
 # (1), (2): discriminators, least squares
 def discriminator_loss(d_real: torch.Tensor, d_fake: torch.Tensor) -> torch.Tensor:
-    return 0.5 * _per_word_mean((1.0 - d_real) ** 2) + 0.5 * _per_word_mean(d_fake ** 2)
+    return 0.5 * _per_word_mean((1.0 - d_real) ** 2) + discriminator_loss_fake(d_fake)
+
+
+def discriminator_loss_fake(d_fake: torch.Tensor) -> torch.Tensor:
+    """The fake half of ``discriminator_loss`` alone."""
+    return 0.5 * _per_word_mean(d_fake ** 2)
 
 
 # (3), (4): generators, least squares

@@ -9,7 +9,10 @@ head t to take G(x, t) for real; the discriminator learns real words of style s 
 and generated ones on the head of their target. An identity term
 (lambda_identity |G(x, s) - x|) and the action-content term of the pair recipe
 (lambda_action, ``content.py``: a frozen action classifier trained on every style's words
-first; G(x, t) keeps x's action) are optional (default off).
+first; G(x, t) keeps x's action) are optional (default off), as is the discriminator's
+mismatch term (lambda_mismatch: real words of style s scored as fake on the head of the
+target t they were sent to; measured in MODEL_CARD.md, "A discriminator that tells the
+styles apart", and not adopted).
 
 One epoch = ``words_per_epoch`` words, an equal share from every style, drawn without
 replacement with a generator seeded by (seed, epoch); targets come from the same
@@ -61,6 +64,10 @@ class MultiStyleTrainConfig(TrainConfig):
     epochs: int = 80
     words_per_epoch: int = 2048
     lambda_identity: float = 0.0
+    # Weight of the mismatch term (``step``): each style's head learns real words of the
+    # other styles as not its own. 0 = off: a head sees only its style's real words and the
+    # words made to be it.
+    lambda_mismatch: float = 0.0
     network: MultiStyleConfig = field(default_factory=MultiStyleConfig)
 
     def to_dict(self) -> dict:
@@ -94,7 +101,7 @@ def multistyle_metadata(cfg, rep, code_table, extra: dict | None = None) -> dict
         **shared_metadata(cfg, rep, f"all {len(STYLES)} styles ({', '.join(STYLES)})"),
         "loss": "cycle-diff, any pair (x -> target -> own style)",
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "identity": cfg.lambda_identity,
-                    "action": cfg.lambda_action},
+                    "action": cfg.lambda_action, "mismatch": cfg.lambda_mismatch},
     }
     meta.update(extra or {})
     return meta
@@ -183,6 +190,12 @@ class MultiStyleTrainer:
         for p in m.discriminators():
             p.requires_grad_(True)
         d = L.discriminator_loss(m.D(x, src), m.D(fake.detach(), tgt))
+        if cfg.lambda_mismatch > 0:
+            # The matching-aware discriminator of text-to-image GANs, for styles: real
+            # motion of style s on head t != s counts as fake, so head t must tell style t
+            # from every other real style, not only real from made. The target drawn for
+            # x is such a t.
+            d = d + cfg.lambda_mismatch * L.discriminator_loss_fake(m.D(x, tgt))
         self.opt_d.zero_grad(set_to_none=True)
         d.backward()
         self.opt_d.step()

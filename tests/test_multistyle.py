@@ -4,7 +4,9 @@ CLI runs use a few words of the shared Bandai data and are skipped without it)."
 
 from __future__ import annotations
 
+import copy
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +16,7 @@ import torch
 from stylecast.cli import main
 from stylecast.models import checkpoint as ckpt
 from stylecast.models.multistyle import MultiStyleConfig, StyleDiscriminator, make_generator
+from stylecast.models.networks import to_channels
 from stylecast.models.representation import get_representation
 from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler, code_and_intensity
@@ -216,6 +219,31 @@ def test_training_is_deterministic_for_a_seed_and_moves_the_weights():
     assert all(torch.equal(a0[k], a1[k]) for k in a0)  # same seed, same weights
     assert any(not torch.equal(a0[k], a2[k]) for k in a0)  # another seed differs
     assert not torch.equal(a0["G.head.weight"], b0["G.head.weight"])  # the head left zero: it learnt
+
+
+def test_the_mismatch_term_scores_real_words_of_other_styles_as_fake_on_the_target_head():
+    """The discriminator's loss with ``lambda_mismatch`` is the plain one plus that weight
+    times the LSGAN fake term of the REAL words on the head of the style they were sent to
+    (a style not their own): read off one step from the same state, where the generator's
+    update (which the term does not touch) is the same in both runs."""
+    src = torch.arange(S).repeat(2)
+    tgt = (src + 3) % S
+    base = MultiStyleTrainer(_tiny_cfg(seed=5, lr=2e-3), _tiny_words(8), device="cpu")
+    x = to_channels(torch.stack([base.words[s][i] for s, i in zip(src.tolist(), [0] * S + [1] * S)]))
+    for _ in range(20):  # the heads learn apart, so the right and the wrong head score differently
+        base.step(x, src, tgt)
+    with torch.no_grad():
+        wrong_head, own_head = base.model.D(x, tgt), base.model.D(x, src)
+    losses = {}
+    for weight in (0.0, 2.0):
+        t = copy.deepcopy(base)
+        t.cfg = replace(base.cfg, lambda_mismatch=weight)
+        losses[weight] = t.step(x, src, tgt)["D"]
+    expected = 2.0 * 0.5 * (wrong_head ** 2).mean().item()
+    assert losses[2.0] - losses[0.0] == pytest.approx(expected, rel=1e-4)
+    # Known-bad: the term taken on the words' own head (which scores them as real, near 1)
+    # would add several times as much, far outside that tolerance.
+    assert 2.0 * 0.5 * (own_head ** 2).mean().item() > 3 * expected
 
 
 def test_every_style_and_every_target_is_drawn_and_no_word_targets_its_own_style():
