@@ -256,7 +256,8 @@ def run_train_multistyle(args) -> int:
         raise UserError(f"--knots: {exc}") from None
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
                                 max_words=args.max_words, lambda_identity=args.lambda_identity,
-                                lambda_mismatch=args.lambda_mismatch, lambda_action=args.lambda_action, network=net, feet=args.feet, mirror=args.mirror,
+                                lambda_mismatch=args.lambda_mismatch, lambda_action=args.lambda_action, network=net,
+                                feet=args.feet, mirror=args.mirror,
                                 **_given(ema=args.ema, epochs=args.epochs, words_per_epoch=args.words_per_epoch))
     train, val, actions = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
     train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress,
