@@ -266,6 +266,8 @@ def run_train_multistyle(args) -> int:
 
 
 def run_train(args) -> int:
+    from stylecast.motion.errors import UserError
+
     from .device import pick_device
     from .networks import NetworkConfig
     from .train import TrainConfig, load_training_words, train
@@ -276,8 +278,6 @@ def run_train(args) -> int:
     pick_device(args.device)  # a missing CUDA device is refused before minutes of data loading
     _check_generator(args.generator, args.styles)
     if args.styles == "all":
-        from stylecast.motion.errors import UserError
-
         if args.lambda_style:
             raise UserError("--lambda-style is for a pair model; drop it or drop --styles all")
         if args.action_view != "channels":
@@ -288,8 +288,6 @@ def run_train(args) -> int:
             raise UserError("--lambda-position-adv is for a pair model; drop it or drop --styles all")
         return run_train_multistyle(args)
     if args.lambda_mismatch:
-        from stylecast.motion.errors import UserError
-
         raise UserError("--lambda-mismatch is for --styles all; drop it or add --styles all")
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
@@ -299,8 +297,6 @@ def run_train(args) -> int:
                       lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, hold_from=args.hold_from,
                       lambda_position_adv=args.lambda_position_adv, feet=args.feet, mirror=args.mirror,
                       action_view=args.action_view, **_given(ema=args.ema))
-    from stylecast.motion.errors import UserError
-
     from .styles import check_style
 
     for name in (args.style_a, args.style_b):

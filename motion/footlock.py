@@ -1097,8 +1097,9 @@ class LockJob:
     """One lock's output frames t0 .. t0+n-1 from ``FootLock.plan`` to ``solve_lock_jobs``:
     input ``roots`` (n, 3), input and restyled rotations (n, J, 4), lock ``weights`` (n, 2),
     which feet are ``down`` for the pelvis (n, 2), the ``floor`` (n,), the restyle's ``mix``
-    (n,) or None, and the input's feet ``own`` (n, ankle/ball, foot, xyz) as pushed. Solving fills in ``new_roots`` (the pelvis height and
-    the pace set) and ``result``, the locked rotations."""
+    (n,) or None, and the input's feet ``own`` (n, ankle/ball, foot, xyz) as pushed. Solving
+    fills in ``new_roots`` (the pelvis height and the pace set) and ``result``, the locked
+    rotations."""
 
     lock: FootLock
     t0: int
