@@ -302,6 +302,10 @@ class PreviousModelCall:
         self._restyler = restyler
         self.restyle_words = restyler.restyle_words_eager
 
+    # Nor did it hand the model the words and take back the checked, continuous result in
+    # one call (``Restyler.restyle_stream_words``): the worker did that in numpy around it.
+    restyle_stream_words = None
+
     def __getattr__(self, name):
         return getattr(self._restyler, name)
 

@@ -185,6 +185,23 @@ def main() -> int:
             rows.append(("  baseline: the same operations eager (the previous release)",
                          median_ms(lambda: restyler.restyle_words_eager(words[:8]), 5 if switch > 0.002 else 10, 1, time.thread_time), ""))
 
+    # The daemon's model thread's whole job on a tick's words (``InferenceWorker._call``):
+    # the model's one traced call, hemisphere passes and check inside, against those passes
+    # in numpy around ``restyle_words`` (the previous release), each of which handed the GIL
+    # to the busy thread and waited to get it back. Wall time: the waiting is the cost.
+    from stylecast.daemon.inference import InferenceWorker
+
+    class NumpyAroundTheCall:  # the restyler without its one-call job
+        restyle_words = restyler.restyle_words
+
+    with busy_python_thread(0.001):
+        for n in (8, 64):
+            job = [(0, 59, w) for w in words[:n]]
+            label = f"the model thread's job, {n} words, busy Python thread beside it, GIL switch 1 ms (wall)"
+            rows.append((label, median_ms(lambda: InferenceWorker._call(restyler, job, words[:n]), 20, 2), ""))
+            rows.append(("  baseline: numpy passes around restyle_words (the previous release)",
+                         median_ms(lambda: InferenceWorker._call(NumpyAroundTheCall, job, words[:n]), 20, 2), ""))
+
     # restyle_words at growing batches: words/s with numpy in and out (what `restyle` and the
     # daemon hand it), and with the words already on the model's device (a tensor in and out).
     batch_rows = []

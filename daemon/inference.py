@@ -9,7 +9,8 @@ If the worker has fallen behind, the jobs waiting for it are merged into one big
 batch: catching up costs one call, not several.
 
 A restyler is any object with ``restyle_words(words (B, 60, J, 4)) -> same shape``; each
-word reaches it in one hemisphere over time, made so here for the whole batch.
+word reaches it in one hemisphere over time, made so here for the whole batch (a trained
+model does that, its call and the checks in one traced call: ``restyle_stream_words``).
 An item may carry a fourth element, a style mix (S,) for that word (None: the model's
 own); a batch with any mix in it is ONE call ``restyle_words(words, weights (B, S))``
 of a multi-style model, whatever mix each performer uses.
@@ -133,28 +134,34 @@ class InferenceWorker:
                     self._cond.notify_all()
 
     @staticmethod
-    def _call(restyler, items: list, words: np.ndarray):
+    def _call(restyler, items: list, words: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Words in any hemisphere -> (restyled words, each continuous in time; (B,) usable),
+        the seam blender's input (results are added ``continuous``): the words made
+        continuous in time, restyled, checked and the output made continuous, for the
+        whole batch here rather than per word in the output loop. A model that can
+        (``restyle_stream_words``) does all of it in one call."""
         mixes = [item[3] if len(item) > 3 else None for item in items]
-        if all(m is None for m in mixes):
-            return restyler.restyle_words(words)
-        own = restyler.weights  # a multi-style model's own mix, for rows that chose none
-        return restyler.restyle_words(words, np.stack([own if m is None else m for m in mixes]))
+        # A multi-style model's own mix for rows that chose none; nothing for an all-None batch.
+        args = () if all(m is None for m in mixes) else \
+            (np.stack([restyler.weights if m is None else m for m in mixes]),)
+        in_one_call = getattr(restyler, "restyle_stream_words", None)
+        if in_one_call is not None:
+            out, ok = in_one_call(words, *args)
+        else:
+            out, ok = restyler.restyle_words(rot.canonical_hemisphere(words, axis=1), *args), None
+        out = np.asarray(out, dtype=np.float64)
+        if out.shape != words.shape:
+            raise ValueError(f"restyler returned shape {out.shape} for words of shape {words.shape}")
+        if ok is None:
+            return rot.canonical_hemisphere(out, axis=1), rot.usable_words(out)
+        return out, np.asarray(ok, dtype=bool)
 
     def _process(self, items: list) -> None:
-        # Each word continuous in time, the batch in one pass (the sessions' cutters leave
-        # it to this thread: per word it cost the output loop).
-        words = rot.canonical_hemisphere(np.stack([item[2] for item in items]), axis=1)
+        words = np.stack([item[2] for item in items])
         restyler = self._restyler
         t0 = time.perf_counter()
         try:
-            out = np.asarray(self._call(restyler, items, words), dtype=np.float64)
-            if out.shape != words.shape:
-                raise ValueError(f"restyler returned shape {out.shape} for words of shape {words.shape}")
-            norms = np.linalg.norm(out, axis=-1)
-            ok = np.all(np.isfinite(out), axis=(1, 2, 3)) & np.all(norms > 1e-6, axis=(1, 2))
-            # The seam blender wants each word continuous in time: one pass for the batch
-            # here, not one per word in the output loop (results are added ``continuous``).
-            out = rot.canonical_hemisphere(out, axis=1)
+            out, ok = self._call(restyler, items, words)
         except Exception as exc:  # any model failure is a counted fault, never a crash
             out, ok = None, np.zeros(len(items), bool)
             self.last_fault = f"{type(exc).__name__}: {exc}"

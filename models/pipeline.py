@@ -13,8 +13,9 @@ traced; at 64 performers over two processes, 8 s runs, the eager call let 96 and
 frames come late, the traced one none (``bench/bench_daemon.py capacity-workers``). A
 traced graph runs in torch's C++ interpreter, which releases the GIL once per call.
 
-The graph is traced from the eager modules on the first batch (``WordPipeline``; sizes
-stay symbolic, so any batch size runs it) and kept per generator module, so every
+The graph is traced from the eager modules on the first batch (``WordPipeline``, or
+``StreamWordPipeline`` for the daemon's model thread; sizes stay symbolic, so any batch
+size runs it) and kept per generator module and pipeline, so every
 restyler sharing a generator (directions, style mixes) shares its graph. It runs with
 TorchScript's optimising passes off, so the graph computes exactly the eager operations
 and gives the same bits (tests/test_pipeline.py). With the previous convolution form the
@@ -54,16 +55,48 @@ class WordPipeline(nn.Module):
         return RT.same_hemisphere(RT.restore_heading(self.trep.decode(y), yaw), words)
 
 
-_traced: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # generator module -> its graph
-_tracing = threading.Lock()  # one trace per generator, even when two threads ask at once
+class StreamWordPipeline(WordPipeline):
+    """What the daemon's model thread runs on a batch: words in any hemisphere -> (the
+    restyled words, each continuous in time; (B,) bool, each word usable: finite, no
+    zero-length quaternion). ``WordPipeline`` on the words made continuous in time, as
+    the seam blender wants them, with the check and the output's hemisphere pass inside
+    the graph: done around the call in numpy, each of their dozen operations on a batch
+    released the GIL and had to win it back from the output loop. Beside a thread busy in
+    Python (1 ms switch interval), a job of 16 words took 39-41 ms that way against 14-15
+    in this graph, 64 words 93 against 61-64 ms (both about 9 and 40 ms alone; Intel Xeon
+    VM, 2 vCPUs; ``bench/bench_models.py``, "the model thread's job")."""
+
+    def forward(self, words: torch.Tensor, *conditioning: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        out = super().forward(RT.continuous_in_time(words), *conditioning)
+        return RT.continuous_in_time(out), RT.usable_words(out)
+
+
+# generator module -> {pipeline class: its graph}
+_traced: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_tracing = threading.Lock()  # one trace per graph, even when two threads ask at once
 
 
 def restyle(generator: nn.Module, trep: RT.TorchRepresentation, words: torch.Tensor,
             conditioning: tuple = ()) -> torch.Tensor:
     """``WordPipeline(generator, trep)(words, *conditioning)`` as one traced call."""
-    graph = _traced.get(generator)
+    return _run(WordPipeline, generator, trep, words, conditioning)
+
+
+def restyle_for_stream(generator: nn.Module, trep: RT.TorchRepresentation, words: torch.Tensor,
+                       conditioning: tuple = ()) -> tuple[torch.Tensor, torch.Tensor]:
+    """``StreamWordPipeline(generator, trep)(words, *conditioning)`` as one traced call."""
+    return _run(StreamWordPipeline, generator, trep, words, conditioning)
+
+
+def traced(generator: nn.Module, kind: type = WordPipeline):
+    """The graph of ``kind`` traced for ``generator``, or None before its first call."""
+    return _traced.get(generator, {}).get(kind)
+
+
+def _run(kind, generator, trep, words, conditioning):
+    graph = traced(generator, kind)
     if graph is None:
-        graph = _trace(generator, trep, words, conditioning)
+        graph = _trace(kind, generator, trep, words, conditioning)
     with torch.no_grad(), torch.jit.optimized_execution(False):
         return graph(words, *conditioning)
 
@@ -76,9 +109,9 @@ def restyle_eager(generator: nn.Module, trep: RT.TorchRepresentation, words: tor
         return WordPipeline(generator, trep)(words, *conditioning)
 
 
-def _trace(generator, trep, words, conditioning):
+def _trace(kind, generator, trep, words, conditioning):
     with _tracing:
-        graph = _traced.get(generator)
+        graph = traced(generator, kind)
         if graph is None:
             with torch.no_grad(), warnings.catch_warnings():
                 # The graph keeps the reference rotations and the fixed matrices as
@@ -89,6 +122,6 @@ def _trace(generator, trep, words, conditioning):
                 # rounding) and needs a C++ compiler at start-up, an exported program runs
                 # op by op from Python. torch is pinned (constraints.txt), so it stays.
                 warnings.simplefilter("ignore", DeprecationWarning)
-                graph = torch.jit.trace(WordPipeline(generator, trep), (words, *conditioning), check_trace=False)
-            _traced[generator] = graph
+                graph = torch.jit.trace(kind(generator, trep), (words, *conditioning), check_trace=False)
+            _traced.setdefault(generator, {})[kind] = graph
     return graph

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from stylecast.motion import rotations as rot
+
 from . import representation as R
 
 DTYPE = torch.float64  # the numpy reference's precision; see the module docstring
@@ -83,6 +85,22 @@ def same_hemisphere(out: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
     (q and -q are one rotation; the blender interpolates between input and output)."""
     dot = (out * like) @ out.new_ones(4)  # cheaper than a sum over a length-4 axis
     return out * torch.where(dot < 0, -1.0, 1.0).unsqueeze(-1)
+
+
+def continuous_in_time(q: torch.Tensor) -> torch.Tensor:
+    """Words (B, T, J, 4) with signs flipped along T so consecutive quaternions have a
+    non-negative dot: ``motion.rotations.canonical_hemisphere(q, axis=1)``, the same
+    products in the same order, so the same bits."""
+    a, b = q[:, 1:], q[:, :-1]
+    dots = a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2] + a[..., 3] * b[..., 3]
+    flips = torch.cumprod(torch.where(dots < 0, -1.0, 1.0), dim=1)
+    return torch.cat([q[:, :1], a * flips.unsqueeze(-1)], dim=1)
+
+
+def usable_words(words: torch.Tensor) -> torch.Tensor:
+    """(B, T, J, 4) -> (B,) bool: ``motion.rotations.usable_words``."""
+    finite = torch.isfinite(words).flatten(1).all(1)
+    return finite & (torch.linalg.vector_norm(words, dim=-1) > rot.MIN_QUATERNION_NORM).flatten(1).all(1)
 
 
 # -- Euler XZY ---------------------------------------------------------------------------

@@ -213,15 +213,31 @@ class Restyler:
             out = pipeline.restyle(network, self.torch_representation, w.contiguous(), conditioning)
         return out if is_tensor else out.cpu().numpy()
 
+    def restyle_stream_words(self, words: np.ndarray, *args) -> tuple[np.ndarray, np.ndarray]:
+        """The daemon's model-thread call (``daemon.inference``): words (B, 60, 22, 4) in
+        any hemisphere -> (the restyled words, each continuous in time, float64; (B,) bool,
+        each word usable), in one traced call (``pipeline.StreamWordPipeline``); the same
+        bits as ``restyle_words`` on the words made continuous in time, then made
+        continuous. ``args`` as ``restyle_words``'s."""
+        import torch
+
+        from . import pipeline
+
+        w = torch.from_numpy(np.asarray(words, dtype=np.float64)).to(self.device)
+        _check_words_shape(tuple(w.shape))
+        network, conditioning = self._network(len(w), *args)
+        out, ok = pipeline.restyle_for_stream(network, self.torch_representation, w.contiguous(), conditioning)
+        return out.cpu().numpy(), ok.cpu().numpy()
+
     def warm_up(self) -> None:
         """Each generator this model can run live (both directions) called once on one
-        identity word, off the clock. A generator's first call traces its graph
-        (``pipeline``): 130-160 ms alone here, 250 ms inside a loaded daemon, where a model
-        swapped in live once paid it on the clock (its first words late, and the planner
-        raised the delay to 23 frames for the minutes it took to come back down); a
-        direction changed live paid it too."""
+        identity word as the daemon calls it, off the clock. A generator's first call
+        traces its graph (``pipeline``): 130-160 ms alone here, 250 ms inside a loaded
+        daemon, where a model swapped in live once paid it on the clock (its first words
+        late, and the planner raised the delay to 23 frames for the minutes it took to
+        come back down); a direction changed live paid it too."""
         for direction in ("a2b", "b2a"):
-            self.restyle_words(_identity_words(), direction)
+            self.restyle_stream_words(_identity_words(), direction)
 
     def restyle_words_eager(self, words: np.ndarray, *args) -> np.ndarray:
         """``restyle_words`` on numpy words with its operations run one by one instead of as

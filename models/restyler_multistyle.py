@@ -150,7 +150,7 @@ class MultiStyleRestyler(Restyler):
 
     def warm_up(self) -> None:
         """``Restyler.warm_up``: its one generator."""
-        self.restyle_words(_identity_words())
+        self.restyle_stream_words(_identity_words())
 
     def with_direction(self, direction: str):
         raise UserError(f"model {self.name} has no directions; choose its style instead (--style NAME, "

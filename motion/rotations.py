@@ -221,3 +221,14 @@ def canonical_hemisphere(q: np.ndarray, axis: int = 0) -> np.ndarray:
         flips = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
         t[1:] *= flips[..., None]
     return q
+
+
+# Shorter than this, a "quaternion" a model returned is no rotation (a fault, not a pose).
+MIN_QUATERNION_NORM = 1e-6
+
+
+def usable_words(words: np.ndarray) -> np.ndarray:
+    """(B, T, J, 4) -> (B,) bool: every quaternion of the word finite and of non-zero length."""
+    words = np.asarray(words)
+    norms = np.linalg.norm(words, axis=-1)
+    return np.all(np.isfinite(words), axis=(1, 2, 3)) & np.all(norms > MIN_QUATERNION_NORM, axis=(1, 2))

@@ -32,13 +32,14 @@ from .test_multistyle import _tiny_cfg, _tiny_words
 
 
 class Spy(MultiStyleRestyler):
-    """The model, recording every call's batch size and style weights."""
+    """The model, recording every call the daemon's model thread makes (its batch size and
+    style weights)."""
 
     calls: list
 
-    def restyle_words(self, words, weights=None):
+    def restyle_stream_words(self, words, weights=None):
         self.calls.append((len(words), None if weights is None else np.array(weights)))
-        return super().restyle_words(words, weights)
+        return super().restyle_stream_words(words, *(() if weights is None else (weights,)))
 
 
 @pytest.fixture(scope="module")

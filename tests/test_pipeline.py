@@ -82,7 +82,33 @@ def test_restylers_sharing_a_generator_share_its_graph():
     restyler = load("multistyle")
     words = random_words(3)
     restyler.restyle_words(words)
-    graph = pipeline._traced[restyler.model]
+    graph = pipeline.traced(restyler.model)
     restyler.with_style("elderly:0.5,youthful:0.5").restyle_words(words)
     restyler.for_target("active").restyle_words(words)
-    assert pipeline._traced[restyler.model] is graph
+    assert graph is not None and pipeline.traced(restyler.model) is graph
+
+
+@pytest.mark.parametrize("name", ["normal2exhausted", "multistyle"])
+def test_the_daemons_call_is_the_restyle_of_the_words_made_continuous_then_made_continuous(name):
+    """``restyle_stream_words`` (the model thread's one traced call) gives, bit for bit, what
+    the worker computed in numpy around ``restyle_words``; a word with a NaN is unusable."""
+    restyler = load(name)
+    for n in (5, 1, 12):
+        words = random_words(n, seed=n)
+        # Half the quaternions of the cutter's words may come in the other hemisphere.
+        words *= np.where(np.random.default_rng(n).random((n, 60, 22, 1)) < 0.5, -1.0, 1.0)
+        args = conditioning_args(restyler, n)
+        out, ok = restyler.restyle_stream_words(words, *args)
+        expected = rot.canonical_hemisphere(restyler.restyle_words(rot.canonical_hemisphere(words, axis=1), *args),
+                                            axis=1)
+        assert np.array_equal(out, expected) and ok.dtype == bool and ok.all()
+    # The check is the graph's: a NaN in, a NaN out, that word alone unusable.
+    words[3, 10, 5, 0] = np.nan
+    assert restyler.restyle_stream_words(words, *args)[1].tolist() == [k != 3 for k in range(12)]
+
+
+def test_the_daemons_call_runs_no_python_between_its_operations():
+    restyler = load("normal2exhausted")
+    words = random_words(8)
+    restyler.restyle_stream_words(words)  # traced here
+    assert python_calls_during(lambda: restyler.restyle_stream_words(words)) == []

@@ -73,6 +73,19 @@ def test_heading_removal_equals_the_numpy_reference():
     assert max_angle(back, w) < TOLERANCE_DEG
 
 
+def test_continuity_in_time_and_the_usable_check_equal_the_numpy_ones():
+    q = random_quats(3 * 60).reshape(3, 60, 22, 4)
+    q *= np.where(np.random.default_rng(1).random((3, 60, 22, 1)) < 0.5, -1.0, 1.0)
+    assert np.min(np.sum(q[:, 1:] * q[:, :-1], axis=-1)) < 0  # the known-bad input: not continuous
+    out = RT.continuous_in_time(torch.from_numpy(q)).numpy()
+    assert np.array_equal(out, rot.canonical_hemisphere(q, axis=1))  # bit for bit
+    assert np.min(np.sum(out[:, 1:] * out[:, :-1], axis=-1)) >= 0 and np.array_equal(np.abs(out), np.abs(q))
+    q[0, 7, 3] = 0.0  # a zero-length quaternion
+    q[2, 59, 21, 2] = np.inf
+    expected = [False, True, False]
+    assert rot.usable_words(q).tolist() == expected == RT.usable_words(torch.from_numpy(q)).tolist()
+
+
 @pytest.mark.parametrize("model", SHIPPED)
 @pytest.mark.parametrize("direction", ["a2b", "b2a"])
 def test_shipped_euler_models_restyle_real_clips_as_the_numpy_path_does(real_words, model, direction):
