@@ -62,9 +62,9 @@ class StreamWordPipeline(WordPipeline):
     the seam blender wants them, with the check and the output's hemisphere pass inside
     the graph: done around the call in numpy, each of their dozen operations on a batch
     released the GIL and had to win it back from the output loop. Beside a thread busy in
-    Python (1 ms switch interval), a job of 16 words took 39-41 ms that way against 14-15
-    in this graph, 64 words 93 against 61-64 ms (both about 9 and 40 ms alone; Intel Xeon
-    VM, 2 vCPUs; ``bench/bench_models.py``, "the model thread's job")."""
+    Python (1 ms switch interval), a job of 8 words took 22.4 ms that way against 8.0 in
+    this graph, 64 words 70.0 against 33.7 ms (alone: 4.7-4.9 and 34 ms either way; Intel
+    Xeon VM, 2 vCPUs; ``bench/bench_models.py``, "the model thread's job")."""
 
     def forward(self, words: torch.Tensor, *conditioning: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         out = super().forward(RT.continuous_in_time(words), *conditioning)
