@@ -60,7 +60,10 @@ CONTROL_ERRORS_LOGGED = 10  # refused commands logged one by one; after that eve
 MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not sent late
 
 
-BATCH_GROUP = 8  # performers whose words share one model call
+# The fewest performers whose words share a word phase, and so one model call, while there
+# are that many (``stagger_phase``): a call costs a fixed part (~0.6 ms here) beside its
+# words, so ever smaller groups would spend ever more CPU on calls.
+MIN_BATCH = 4
 PLAN_EVERY_TICKS = 60  # how often the slack planner's estimate is checked (1 s)
 # torch's CPU threads for the live model. More than one makes its threads wait on each
 # other and on the output loop: on this project's shared 2-core machine, 8 words took
@@ -79,14 +82,21 @@ def stagger_phase(hop: int, k: int, performers: int) -> int:
     """Performer k's word-grid phase: its group's share of the hop.
 
     Performers that start together would hand all their words to the model on one tick
-    and wait for one big batch; with delay = hop the model has one frame period, so a
-    large batch comes back late (counted, faded to pass-through). Groups of
-    ``BATCH_GROUP`` share a phase, and the groups spread evenly over the hop: words are
-    still batched, and no tick carries more than a group's worth. The phase is the only
-    per-performer setting: every session shares the daemon's one ``BlendSettings``, so a
-    live change (``/stylecast/crossfade``) reaches every performer."""
-    groups = -(-performers // BATCH_GROUP)
-    return (k // BATCH_GROUP) * hop // groups
+    and wait for one big batch, whose result comes back later the bigger it is. The
+    performers are cut into contiguous groups of ``MIN_BATCH`` or more, as few per phase
+    as the hop allows (at most ceil(performers / hop) a group), and the groups spread
+    evenly over the hop: words are still batched, and every tick carries about the same
+    share. Until 2026-11-29 the groups were of 8: a process of 8 performers handed the
+    model 8 words on one tick of 4, calls of 9-32 ms in a 16-performer soak on the Intel
+    Xeon VM (4.5 alone), and the slack planner kept the delay at 6 frames; in groups of 4
+    on two ticks, calls of 5-18 ms, and the delay was back at 5 in 61 % of the samples
+    against 14 % (bench/soak.py; daemon/README.md, "Model calls").
+    The phase is the only per-performer setting: every session shares the daemon's one
+    ``BlendSettings``, so a live change (``/stylecast/crossfade``) reaches every
+    performer."""
+    size = max(MIN_BATCH, -(-performers // hop))
+    groups = -(-performers // size)
+    return (k // size) * hop // groups
 
 
 def worker_offset(hop: int, phases: int, worker: int, workers: int) -> float:
