@@ -83,17 +83,16 @@ def stagger_phase(hop: int, k: int, performers: int) -> int:
 
     Performers that start together would hand all their words to the model on one tick
     and wait for one big batch, whose result comes back later the bigger it is. The
-    performers are cut into contiguous groups of ``MIN_BATCH`` or more, as few per phase
-    as the hop allows (at most ceil(performers / hop) a group), and the groups spread
-    evenly over the hop: words are still batched, and every tick carries about the same
-    share. Until 2026-11-29 the groups were of 8: a process of 8 performers handed the
-    model 8 words on one tick of 4, calls of 9-32 ms in a 16-performer soak on the Intel
-    Xeon VM (4.5 alone), and the slack planner kept the delay at 6 frames; in groups of 4
-    on two ticks, calls of 5-18 ms, and the delay was back at 5 in 61 % of the samples
-    against 14 % (bench/soak.py; daemon/README.md, "Model calls").
-    The phase is the only per-performer setting: every session shares the daemon's one
-    ``BlendSettings``, so a live change (``/stylecast/crossfade``) reaches every
-    performer."""
+    performers are cut into contiguous groups of ceil(performers / hop), but at least
+    ``MIN_BATCH``, and the groups spread evenly over the hop: words are still batched,
+    and no phase carries more than one group. Until 2026-11-29 the groups were of 8: a
+    process of 8 performers handed the model 8 words on one tick of 4, calls of 9-32 ms
+    in a 16-performer soak on the Intel Xeon VM (4.5 alone), and the slack planner kept
+    the delay at 6 frames; in groups of 4 on two ticks, calls of 5-18 ms, and the delay
+    was back at 5 in 61 % of the samples against 14 % (bench/soak.py; daemon/README.md,
+    "Model calls"). The phase is the only per-performer setting: every session shares
+    the daemon's one ``BlendSettings``, so a live change (``/stylecast/crossfade``)
+    reaches every performer."""
     size = max(MIN_BATCH, -(-performers // hop))
     groups = -(-performers // size)
     return (k // size) * hop // groups
