@@ -60,10 +60,14 @@ CONTROL_ERRORS_LOGGED = 10  # refused commands logged one by one; after that eve
 MAX_BACKLOG_TICKS = 2  # a tick this many periods late (33 ms) is dropped, not sent late
 
 
-# The fewest performers whose words share a word phase, and so one model call, while there
-# are that many (``stagger_phase``): a call costs a fixed part (~0.6 ms here) beside its
-# words, so ever smaller groups would spend ever more CPU on calls.
-MIN_BATCH = 4
+# Performers whose words share one model call. Groups of 4 were tried (2026-11-29, a
+# 16-performer soak over two processes on the Intel Xeon VM, alternated): the calls came
+# back sooner (18 ms at worst against 32) and the delay was at 5 frames in 61 % of the
+# samples against 14 %, but at 5 the stalls this VM has every few minutes (results 40-56
+# ms after their tick) made 8 and 12 frames late in a 10- and a 30-minute run, where
+# groups of 8, sitting at 6, had none; the hour-long soak's goal is zero late words,
+# so 8 stays (docs/MEASUREMENTS.md).
+BATCH_GROUP = 8
 PLAN_EVERY_TICKS = 60  # how often the slack planner's estimate is checked (1 s)
 # torch's CPU threads for the live model. More than one makes its threads wait on each
 # other and on the output loop: on this project's shared 2-core machine, 8 words took
@@ -82,20 +86,14 @@ def stagger_phase(hop: int, k: int, performers: int) -> int:
     """Performer k's word-grid phase: its group's share of the hop.
 
     Performers that start together would hand all their words to the model on one tick
-    and wait for one big batch, whose result comes back later the bigger it is. The
-    performers are cut into contiguous groups of ceil(performers / hop), but at least
-    ``MIN_BATCH``, and the groups spread evenly over the hop: words are still batched,
-    and no phase carries more than one group. Until 2026-11-29 the groups were of 8: a
-    process of 8 performers handed the model 8 words on one tick of 4, calls of 9-32 ms
-    in a 16-performer soak on the Intel Xeon VM (4.5 alone), and the slack planner kept
-    the delay at 6 frames; in groups of 4 on two ticks, calls of 5-18 ms, and the delay
-    was back at 5 in 61 % of the samples against 14 % (bench/soak.py; daemon/README.md,
-    "Model calls"). The phase is the only per-performer setting: every session shares
-    the daemon's one ``BlendSettings``, so a live change (``/stylecast/crossfade``)
-    reaches every performer."""
-    size = max(MIN_BATCH, -(-performers // hop))
-    groups = -(-performers // size)
-    return (k // size) * hop // groups
+    and wait for one big batch; with delay = hop the model has one frame period, so a
+    large batch comes back late (counted, faded to pass-through). Groups of
+    ``BATCH_GROUP`` share a phase, and the groups spread evenly over the hop: words are
+    still batched, and no tick carries more than a group's worth. The phase is the only
+    per-performer setting: every session shares the daemon's one ``BlendSettings``, so a
+    live change (``/stylecast/crossfade``) reaches every performer."""
+    groups = -(-performers // BATCH_GROUP)
+    return (k // BATCH_GROUP) * hop // groups
 
 
 def worker_offset(hop: int, phases: int, worker: int, workers: int) -> float:

@@ -287,9 +287,8 @@ def test_several_performers_are_batched_and_each_equals_offline():
 
 
 def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline():
-    """Ten performers at hop 10 form groups of ``MIN_BATCH`` (4): performers 0-3 share a
-    word grid (and model calls), 4-7 a third of a hop later, 8-9 two thirds, so no tick
-    hands the model every word at once."""
+    """Performers 0-7 share a word grid (and model calls); performers 8-9 form a second
+    group half a hop later, so no tick hands the model every word at once."""
     clip = walk_clip(200)
     restyler = StandInRestyler()
     frames: dict[str, list] = {}
@@ -298,10 +297,10 @@ def test_groups_of_performers_are_staggered_over_the_hop_and_each_equals_offline
                     frame_taps=[lambda f: frames.setdefault(f.performer, []).append(f)], log_status=False)
     daemon.run()
     daemon.close()
-    assert [s.phase for s in daemon.sessions] == [0] * 4 + [3] * 4 + [6] * 2
-    assert daemon.words_per_tick() == 4  # what the model is timed on before the start, not all 10
+    assert [s.phase for s in daemon.sessions] == [0] * 8 + [5, 5]
+    assert daemon.words_per_tick() == 8  # what the model is timed on before the start, not all 10
     assert daemon.worker.batches < daemon.worker.words
-    for k, phase in ((0, 0), (9, 6)):
+    for k, phase in ((0, 0), (9, 5)):
         live = np.stack([f.rotations for f in frames[f"p{k}"]])
         settings = BlendSettings(hop=10, crossfade_frames=30, phase=phase)
         expected = restyle_stream(clip.rotations, restyler.restyle_words, settings, roots=clip.root_positions,
