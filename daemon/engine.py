@@ -307,7 +307,7 @@ class Daemon:
     @property
     def finished(self) -> bool:
         """Every source has ended and every session has shown its last frame."""
-        return all(s.source.finished and s.out_t is not None and s.out_t >= s.frames_in
+        return all(s.source.finished and s.out_t is not None and s.out_t >= s.stream_frames
                    for s in self.sessions)
 
     def run(self, stop: threading.Event | None = None, duration: float = 0.0) -> None:

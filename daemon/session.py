@@ -38,8 +38,8 @@ from stylecast.motion.hinges import keep_hinges
 from stylecast.motion.resample import StreamResampler
 from stylecast.motion.skeleton import Skeleton
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
-from stylecast.motion.words import (BlendSettings, SeamBlender, WordCutter, plan_frames, planned_mix,
-                                   render_planned)
+from stylecast.motion.words import (BlendSettings, SeamBlender, WordCutter, half_rate_shift, plan_frames,
+                                   planned_mix, render_planned)
 
 from .status import LatencyWindow
 
@@ -156,6 +156,12 @@ class Session:
         self.resampler = StreamResampler(OUTPUT_FPS)
         self._clock_offset: float | None = None
         self._burst = 0  # frames the last ingest brought
+        # A half-rate source (30 fps) whose word ends all fall on its own frames is shown a
+        # period sooner (``words.half_rate_shift``): ``lead`` 1, after ``held_first`` held
+        # copies of its first frame. Decided on the stream's second source frame.
+        self._rate_known = False
+        self.lead = 0
+        self.held_first = 0
 
     @property
     def intensity(self) -> float:
@@ -179,14 +185,37 @@ class Session:
         before = self.cutter.frames_seen
         for frame in self.source.poll(now):
             restarts = self.resampler.restarts
-            for grid_frame in self.resampler.feed(frame):
+            grid = self.resampler.feed(frame)
+            if self.resampler.restarts != restarts:
+                self.lead = 0  # the new grid's anchor may sit on an odd frame: no longer sure
+            elif not self._rate_known and self.cutter.frames_seen == 1:
+                words += self._learn_rate(grid, frame)
+            for grid_frame in grid:
                 words += self.push(self._on_daemon_clock(grid_frame, now, restarts))
         self._burst = self.cutter.frames_seen - before
         self._check_skeleton()
-        if self.source.finished and self._inputs and self.cutter.frames_seen < self.frames_in + self.settings.delay:
+        if self.source.finished and self._inputs and self.cutter.frames_seen < self.stream_frames + self.settings.delay:
             _, arrival, root, rotations = self._inputs[-1]
             words += self.push(PoseFrame(self.performer, arrival, root, rotations), held=True)
         return words
+
+    def _learn_rate(self, grid: list, frame: PoseFrame) -> list[tuple[int, np.ndarray]]:
+        # The second source frame of the stream: at half the output rate it brings two
+        # grid frames, the second on the grid at its own time.
+        self._rate_known = True
+        half_rate = len(grid) == 2 and abs(grid[1].timestamp - frame.timestamp) <= self.resampler.ON_GRID
+        shift = half_rate_shift(self.settings.hop, self.settings.word_length, self.phase) if half_rate else None
+        if shift is None:
+            return []
+        self.lead, self.held_first = 1, shift
+        _, arrival, root, rotations = self._inputs[-1]
+        return self.push(PoseFrame(self.performer, arrival, root, rotations), held=True) if shift else []
+
+    @property
+    def stream_frames(self) -> int:
+        """Frames of the stream that came from the source: ``frames_in``, and the held copy
+        of the first frame a half-rate source may start with."""
+        return self.frames_in + self.held_first
 
     def _on_daemon_clock(self, frame: PoseFrame, now: float, restarts: int) -> PoseFrame:
         # Source time -> daemon time by a fixed offset taken when the stream (re)starts:
@@ -289,9 +318,11 @@ class Session:
         """``render`` up to the seam blender: a new frame is returned pending (for
         ``settle_frames``), anything else as ``render`` returns it."""
         newest = self.cutter.frames_seen - 1
-        target = newest - self.settings.delay
+        # The lead shortens the foot lock's look-ahead by a frame: only where its ramp fits.
+        lead = self.lead if self.feet.ramp < self.settings.delay else 0
+        target = newest - self.settings.delay + lead
         if drain:
-            target = min(target, self.frames_in - 1)
+            target = min(target, self.stream_frames - 1)
         self.new_frame = False
         if target < 0:
             return None
@@ -299,9 +330,10 @@ class Session:
             # A source slower than the output clock (30 Hz), or not a multiple of it
             # (90 Hz), delivers resampled frames in bursts (two, then none). Start as far
             # behind the newest frame as this tick's burst, so the output steps one frame
-            # per tick from the start instead of holding on the tick after the burst.
+            # per tick from the start instead of holding on the tick after the burst. A
+            # held copy of a stream's first frame is shown instead of the first frame.
             start = target - min(max(self._burst - 1, 0), MAX_LAG)
-            if start < 0:
+            if start < self.held_first:
                 return None
             self.out_t = start
         elif not drain:

@@ -62,7 +62,7 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
                       crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
                       live: bool = False, roots: np.ndarray | None = None, skeleton=None,
                       correction_tau: float | None = None, contacts=None,
-                      start_restyled: bool = True) -> Restyled:
+                      start_restyled: bool = True, held_first: int = 0) -> Restyled:
     """Humanoid rotations (T, J, 4) at 60 fps -> restyled rotations (T, J, 4) and, where
     ``roots`` (T, 3) are given, root positions; any T >= 1.
     ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
@@ -72,7 +72,9 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
     and the pelvis height set (``motion.footlock``, with ``contacts``, its
     ``ContactSettings``, or the defaults the daemon runs), as the daemon does; without them
     they are not. ``start_restyled``: a live stream's first frame shown restyled, not faded
-    in (``BlendSettings.start_restyled``; the model's own is ``words.start_of``)."""
+    in (``BlendSettings.start_restyled``; the model's own is ``words.start_of``).
+    ``held_first`` (live only): copies of the first frame the stream starts with, as the
+    daemon starts a half-rate source (``half_rate_held``); their frames are not returned."""
     from stylecast.motion.footlock import ContactSettings, FootLock
     from stylecast.motion.words import BlendSettings, restyle_stream
 
@@ -83,7 +85,9 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
                              start_restyled=start_restyled,
                              **({} if correction_tau is None else {"correction_tau": correction_tau}))
     before, after = (0, 0) if live else padding(hop, settings.crossfade_frames, settings.decay_frames)
-    idx = mirror_indices(T, before, after)
+    if held_first and not live:
+        raise ValueError("held_first is the daemon's start of a live stream: only with live=True")
+    idx = np.concatenate([np.zeros(held_first, int), mirror_indices(T, before, after)])
     padded = rot.canonical_hemisphere(np.asarray(rotations, dtype=np.float64)[idx])
     feet = None
     if roots is not None:
@@ -94,7 +98,8 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
             feet = FootLock.for_stream(skeleton, settings.delay, contacts or ContactSettings(),
                                        fade_in=settings.first_fade_end, fade_tau=settings.correction_tau,
                                        lead_in=before, aim=intensity)
-    out = restyle_stream(padded, restyle_words, settings, intensity=intensity, roots=roots, feet=feet)
+    out = restyle_stream(padded, restyle_words, settings, intensity=intensity, roots=roots, feet=feet,
+                         first=held_first)
     real = slice(before, before + T)
     moved = None if out.roots is None else out.roots[real].copy()
     if moved is not None and before:
@@ -103,6 +108,15 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
         # where its input does.
         moved[:, [0, 2]] += roots[before, [0, 2]] - moved[0, [0, 2]]
     return Restyled(out.rotations[real], moved)
+
+
+def half_rate_held(fps: float, hop: int) -> int:
+    """The held copies of its first frame the daemon starts a lone performer's stream of a
+    source at ``fps`` with (``words.half_rate_shift``; phase 0, the first group's)."""
+    from stylecast.motion.words import half_rate_shift
+
+    shift = half_rate_shift(hop) if abs(2 * fps - FPS) < 1e-9 else None
+    return shift or 0
 
 
 def sample_at(rotations: np.ndarray, fps: float, times: np.ndarray) -> np.ndarray:
@@ -131,7 +145,8 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
     h60 = resample(humanoid, FPS)
     restyled60 = restyle_rotations(h60.rotations, restyler.restyle_words, hop, intensity, live=live,
                                    roots=h60.root_positions, skeleton=h60.skeleton, contacts=contacts,
-                                   start_restyled=start_of(restyler))
+                                   start_restyled=start_of(restyler),
+                                   held_first=half_rate_held(clip.fps, hop) if live else 0)
     out_fps = float(fps) if fps else clip.fps
     if abs(out_fps - clip.fps) < 1e-9:
         template, h_template = clip, humanoid

@@ -65,6 +65,24 @@ def first_word_end(hop: int, word_length: int = WORD_LENGTH, phase: int = 0) -> 
     return (word_length - 1 + phase) % hop
 
 
+def half_rate_shift(hop: int, word_length: int = WORD_LENGTH, phase: int = 0) -> int | None:
+    """Held copies of its first frame (0 or 1) that put every word end of a half-rate
+    stream on a source frame; None where none can (an odd hop: word ends alternate).
+
+    A source at half the output rate (a 30 fps replay) brings its resampled frames in
+    pairs, an interpolated frame and then the source frame on the grid, both when the
+    source frame arrives: the frames counted from the stream's first, the source frames
+    are the even ones. A word that ends on an interpolated frame is cut a period after its
+    own time, so the stream has to be shown a period later than ``delay`` for that word to
+    keep its slack. Where every word ends on a source frame, none is, and the stream can
+    be shown ``delay`` periods after each frame's own time like a 60 Hz one: the daemon
+    (``Session``) and ``restyle --live`` both start such a stream with its first frame held
+    once more when the grid's ends would be odd."""
+    if hop % 2:
+        return None
+    return first_word_end(hop, word_length, phase) % 2
+
+
 def serving_word_end(t, hop: int, word_length: int = WORD_LENGTH, phase: int = 0):
     """End frame of the word that serves frame t >= 0 (the first grid end >= t); t may be an
     int or an integer array. Plain arithmetic: the daemon asks once per performer a tick."""
@@ -458,7 +476,7 @@ class Restyled(NamedTuple):
 
 def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings,
                    intensity: float = 1.0, batch: int = 64, roots: np.ndarray | None = None,
-                   feet=None) -> Restyled:
+                   feet=None, first: int = 0) -> Restyled:
     """Offline: run a whole clip's humanoid rotations (T, J, 4) through the same cutter and
     blender the daemon uses, with every word restyled in time (never late).
 
@@ -470,7 +488,9 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     elbows and knees kept to their hinges (``hinges.keep_hinges``), then ``feet``, a
     ``footlock.FootLock`` (with the clip's root positions ``roots`` (T, 3)), keeps planted
     feet where the input put them and sets the pelvis height: the daemon's order, frame
-    by frame.
+    by frame. ``first``: frames cut into words but never shown (the held copy a half-rate
+    stream starts with, ``half_rate_shift``): rendering starts after them, as the daemon's,
+    and the result is the frames from ``first`` on.
     """
     T, J = rotations.shape[:2]
     blender = SeamBlender(settings, J)
@@ -479,14 +499,15 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     ends, words = cut_words(padded, settings.hop, settings.word_length, settings.phase)
     for i in range(0, len(words), batch):
         blender.add_words(ends[i:i + batch], restyle_words(words[i:i + batch]))
-    runs = blender.plan_block(0, rotations, intensity)
-    out = CorrectionFilter(J, settings.correction_tau).apply(rotations, render_planned([(blender, runs, rotations)])[0])
-    out = keep_hinges(rotations, out)
+    shown = rotations[first:]
+    runs = blender.plan_block(first, shown, intensity)
+    out = CorrectionFilter(J, settings.correction_tau).apply(shown, render_planned([(blender, runs, shown)])[0])
+    out = keep_hinges(shown, out)
     if feet is None:
-        return Restyled(out, roots)
+        return Restyled(out, None if roots is None else roots[first:])
     # The daemon holds an ended source's last frame for at least ``delay`` >= ramp frames.
     tail = max(held, feet.ramp)
     feet.push(np.concatenate([roots, np.repeat(roots[-1:], tail, axis=0)]),
               np.concatenate([rotations, np.repeat(rotations[-1:], tail, axis=0)]))
-    new_roots, locked = feet.apply(0, roots, rotations, out, planned_mix(runs, T))
+    new_roots, locked = feet.apply(first, roots[first:], shown, out, planned_mix(runs, T - first))
     return Restyled(locked, new_roots)

@@ -58,7 +58,7 @@ def run_daemon(clip: Clip, restyler, hop: int = 15, performers: int = 1, tap=Non
     return daemon, frames
 
 
-def offline(clip: Clip, restyler, hop: int, contacts=None, intensity: float = 1.0):
+def offline(clip: Clip, restyler, hop: int, contacts=None, intensity: float = 1.0, held_first: int = 0):
     """What `stylecast restyle --live --hop HOP` computes for this humanoid motion:
     rotations and roots (the foot lock sets the pelvis height; ``contacts``: its settings,
     by default the model's own, as ``--feet auto``)."""
@@ -67,7 +67,7 @@ def offline(clip: Clip, restyler, hop: int, contacts=None, intensity: float = 1.
     return restyle_rotations(clip.rotations, restyler.restyle_words, hop, intensity, crossfade_frames=30, live=True,
                              roots=clip.root_positions, skeleton=clip.skeleton,
                              contacts=feet_for(AUTO_FEET, restyler) if contacts is None else contacts,
-                             start_restyled=start_of(restyler))
+                             start_restyled=start_of(restyler), held_first=held_first)
 
 
 def test_restyle_live_is_the_shared_stream_code():
@@ -236,8 +236,11 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root, feet)
     each foot lock. The model gives a word the same bits in the daemon's per-tick batches
     as in restyle's (``networks.INFERENCE_FORMS``), so the two agree far inside the
     issue's 1e-4 degrees; with oneDNN's batch-dependent rounding they parted by up to
-    3.4e-4 degrees with the stance lock on held-out clips."""
+    3.4e-4 degrees with the stance lock on held-out clips. At serve's default (hop 4, delay
+    5) the 30 fps replay is shown a frame sooner, after a held copy of its first frame
+    (restyle's ``half_rate_held``); at hops 1 and 15 it cannot be."""
     from stylecast.drivers.bvh.bvh_replay import humanoid_motion
+    from stylecast.models.restyle import half_rate_held
     from stylecast.models.restyler import Restyler
     from stylecast.motion.bvh import read_bvh
     from stylecast.motion.resample import resample
@@ -247,14 +250,18 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root, feet)
     restyler = Restyler.load(str(CHECKPOINT))
     # ...and a stream that fades in from pass-through (as the multi-style model's do) at an
     # intensity below one: its stance is taken at the share the fade heads for.
-    faded = [(15, False, 0.8)] if feet == "stance" else []
-    for hop, start_restyled, intensity in [(1, True, 1.0), (15, True, 1.0)] + faded:
+    faded = [(15, 0, False, 0.8)] if feet == "stance" else []
+    for hop, delay, start_restyled, intensity in [(1, 0, True, 1.0), (4, 5, True, 1.0), (15, 0, True, 1.0)] + faded:
         restyler.start_restyled = start_restyled
-        daemon, frames = run_daemon(motion, restyler, hop=hop, feet=feet, intensity=intensity)
+        daemon, frames = run_daemon(motion, restyler, hop=hop, delay=delay, feet=feet, intensity=intensity)
+        session = daemon.sessions[0]
+        assert (session.lead, session.held_first) == ((1, 1) if hop == 4 else (0, 0))
+        assert half_rate_held(motion.fps, hop) == session.held_first
         assert daemon.sessions[0].feet.locked_frames > 60  # a walk plants its feet: the lock is compared too
         assert daemon.sessions[0].feet.stance.fade_until == (0 if start_restyled else daemon.settings.first_fade_end)
         live = np.stack([f.rotations for f in frames["p0"]])
-        expected = offline(resample(motion, 60.0), restyler, hop, feet_for(feet, restyler), intensity)  # the pace too
+        expected = offline(resample(motion, 60.0), restyler, hop, feet_for(feet, restyler), intensity,
+                           held_first=session.held_first)  # the pace too
         assert live.shape == expected.rotations.shape
         assert rot.angle_between(live, expected.rotations).max() < 1e-8  # degrees
         np.testing.assert_allclose(np.stack([f.root_position for f in frames["p0"]]), expected.roots, atol=1e-6)

@@ -35,14 +35,14 @@ def performer_walk(seconds: float = 3.0):
     return motion.slice(0, int(seconds * motion.fps) + 1)
 
 
-def stream_through_daemon(rate: float, restyler=None, hop: int = DELAY):
+def stream_through_daemon(rate: float, restyler=None, hop: int = DELAY, delay: int = 0):
     motion = performer_walk()
     sent = resample(motion, rate)  # what a sender running at `rate` sends
     out = VmcReceiver("127.0.0.1", 0)
     source = open_source("vmc://127.0.0.1:0?input=bones", "p0")
     sender = VmcSender([source.receiver.address])
     frames, received = [], []
-    cfg = DaemonConfig(hop=hop, control="off", out=["vmc://127.0.0.1:%d" % out.address[1]])
+    cfg = DaemonConfig(hop=hop, delay=delay, control="off", out=["vmc://127.0.0.1:%d" % out.address[1]])
     daemon = Daemon(cfg, [source], restyler or IdentityRestyler(), FakeClock(), frame_taps=[frames.append],
                     log_status=False)
     try:
@@ -137,5 +137,27 @@ def test_slow_or_uneven_rates_leave_the_model_its_time(rate, hop):
     s = daemon.sessions[0]
     indices = [f.index for f in frames]
     new = sorted(set(indices))
-    assert indices[:len(new)] == list(range(len(new)))
+    # From the held copy of the first frame where the stream starts with one (hop 10).
+    assert indices[:len(new)] == list(range(s.held_first, s.held_first + len(new)))
+    assert s.blender.late_frames == 0 and s.skipped == 0
+
+
+@pytest.mark.parametrize("hop, delay, lead", [(4, 5, 1), (15, 15, 0), (4, 4, 0)])
+def test_a_30_hz_stream_is_shown_delay_periods_after_each_frame_where_its_words_end_on_its_frames(hop, delay, lead):
+    """At serve's default (hop 4, delay 5) every word of a 30 Hz stream ends on one of its
+    own frames (after a held copy of its first frame, ``words.half_rate_shift``), so each
+    frame leaves ``delay`` periods after its own time, as a 60 Hz stream's does. An odd
+    hop cannot have it, nor a delay the foot lock's look-ahead needs whole: those trail
+    by the pair, a period more."""
+    from stylecast.daemon.restylers import StandInRestyler
+
+    _, _, frames, _, daemon = stream_through_daemon(30.0, StandInRestyler(), hop, delay)
+    s = daemon.sessions[0]
+    assert s.settings.delay == delay and (s.lead if s.feet.ramp < delay else 0) == lead
+    assert s.held_first == (1 if hop == 4 else 0)
+    periods = [s.latency.percentile(q) * OUTPUT_FPS for q in (0, 50, 100)]
+    assert np.allclose(periods, delay + 1 - lead, atol=1e-6), periods
+    indices = [f.index for f in frames]
+    new = sorted(set(indices))
+    assert new[0] == s.held_first and indices[:len(new)] == new  # one new frame a tick, none twice
     assert s.blender.late_frames == 0 and s.skipped == 0

@@ -6,7 +6,8 @@ import pytest
 from stylecast.motion import rotations as rot
 from stylecast.motion.hinges import keep_hinges
 from stylecast.motion.smoothing import CorrectionFilter, filter_frames
-from stylecast.motion.words import BlendSettings, SeamBlender, WordCutter, cut_words, render_planned, restyle_stream
+from stylecast.motion.words import (BlendSettings, SeamBlender, WordCutter, cut_words, half_rate_shift, render_planned,
+                                   restyle_stream)
 
 J = 22
 
@@ -233,6 +234,24 @@ def test_phase_shifts_the_word_grid_and_the_blend_follows_it():
     assert rot.angle_between(out[30], motion[30]).max() > 5.0
     with pytest.raises(ValueError, match="phase"):
         BlendSettings(hop=15, phase=15)
+
+
+@pytest.mark.parametrize("hop", range(1, 21))
+@pytest.mark.parametrize("phase_share", [0.0, 0.3, 0.5, 0.9])
+def test_a_half_rate_streams_held_start_puts_every_word_end_on_a_source_frame(hop, phase_share):
+    """A 30 fps source's frames are the even ones of its 60 Hz stream; after the held copies
+    ``half_rate_shift`` gives, every word the cutter emits ends on one of them (that is
+    what lets the daemon show the stream a period sooner); an odd hop cannot have it."""
+    phase = int(phase_share * hop)
+    shift = half_rate_shift(hop, phase=phase)
+    if hop % 2:
+        assert shift is None
+        return
+    cutter = WordCutter(hop=hop, phase=phase)
+    ends = [out[0] for t in range(200) if (out := cutter.push(rot.identity((J,)))) is not None]
+    assert shift in (0, 1) and len(ends) > 5
+    assert all((end - shift) % 2 == 0 for end in ends), (ends[:4], shift)
+    assert all((end - (1 - shift)) % 2 == 1 for end in ends)  # the other choice puts them all on interpolated ones
 
 
 def test_the_correction_filter_removes_a_shaking_correction_and_keeps_a_steady_one():
