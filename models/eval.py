@@ -65,7 +65,7 @@ from . import representation as R
 from .baselines import PostureRestyler
 from .ceilings import tempo_ceiling, travel_ceiling
 from .judges import DYNAMICS_PANEL, PANEL, RECURRENT_PANEL, Judges, judge_windows, training_motions
-from .restyle import padding, restyle_rotations
+from .restyle import half_rate_held, padding, restyle_rotations
 from .restyler import Restyler
 
 SHIPPED_V1 = "normal2exhausted-v1"
@@ -81,6 +81,9 @@ BASELINE = "normal2exhausted-coherence"
 # a fade-in over the first half second until 2026-11-28). The held-out takes are 2 to 9 s long
 # (median 2.2 s), so a stream's start is a good part of a clip; the goals are read on "stream".
 SETTINGS = (("stream", False, 0), ("live-from-start", True, 0))
+# The held-out files' own rate (the Bandai BVHs, tests/test_bvh.py checks it): serve replaying
+# one starts it as a half-rate stream (``restyle.half_rate_held``), and "live-from-start" with it.
+LIVE_SOURCE_FPS = 30.0
 
 
 @dataclass
@@ -107,9 +110,10 @@ def frame_differences(quats: np.ndarray) -> np.ndarray:
     return np.linalg.norm(np.diff(measure_space(quats), axis=0), axis=-1)
 
 
-def switch_mask(num_frames: int, hop: int, live: bool) -> np.ndarray:
-    """(T-1,) True where frames t-1 and t are served by different words."""
-    before = 0 if live else padding(hop)[0]
+def switch_mask(num_frames: int, hop: int, live: bool, held_first: int = 0) -> np.ndarray:
+    """(T-1,) True where frames t-1 and t are served by different words (``held_first``: a
+    live stream's held copies of its first frame, ``restyle_rotations``')."""
+    before = held_first if live else padding(hop)[0]
     p = np.arange(num_frames) + before
     first = WORD - 1
     serving = np.where(p <= first, first, first + -(-(p - first) // hop) * hop)
@@ -406,6 +410,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     outputs_for_plot: dict = {}
     for variant in build_variants(proposed, variants, posture, log, source):
         for setting, live, skip in SETTINGS:
+            held_first = half_rate_held(LIVE_SOURCE_FPS, hop) if live else 0
             per_clip, preds, acts, short_acts, dyns, feats, ds, masks = [], [], [], [], [], [], [], []
             for m in clips:
                 inp = m.rotations.astype(np.float64)
@@ -418,9 +423,9 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                     res, moved = restyle_rotations(inp, variant.restyle_words, hop, live=live,
                                                    correction_tau=None if variant.smooth else 0.0,
                                                    start_restyled=variant.start_restyled,
-                                                   contacts=variant.contacts, **lock)
+                                                   contacts=variant.contacts, held_first=held_first, **lock)
                     out_roots = roots if moved is None else moved  # the pelvis height the lock set
-                mask = switch_mask(len(res), hop, live)[skip:]
+                mask = switch_mask(len(res), hop, live, held_first)[skip:]
                 inp, res, roots, out_roots = inp[skip:], res[skip:], roots[skip:], out_roots[skip:]
                 per_clip.append(_clip_measures(inp, res, roots, out_roots, skeleton))
                 w = judge_windows(res, out_roots, skeleton)

@@ -185,6 +185,28 @@ def test_seam_ratio_sees_a_jump_at_each_word_boundary():
     assert seam_ratio(jumped, mask) > 2.5
 
 
+@pytest.mark.parametrize("held_first", [0, 1])
+def test_the_seam_mask_marks_where_a_live_stream_changes_word(held_first):
+    """Each word turned by its own angle, unblended: the output jumps exactly where
+    ``switch_mask`` says, also for a stream started with a held copy of its first frame
+    (a half-rate source, as the evaluation's live setting replays the 30 fps files)."""
+    from stylecast.models.restyle import restyle_rotations
+
+    T, hop = 200, 4
+    q = rot.from_euler(np.repeat(np.linspace(0, 20, T)[:, None, None] * [[[0.0, 1.0, 0.0]]], J, axis=1), "ZXY")
+
+    def turn_each_word(words):  # by an angle read off the word's own last frame
+        angles = 40 * rot.angle_between(words[:, -1:, :1], rot.identity((1, 1, 1)))
+        return rot.multiply(rot.from_euler(angles[..., None] * np.array([1.0, 0.0, 0.0]), "ZXY"), words)
+
+    out = restyle_rotations(q, turn_each_word, hop, live=True, decay_frames=0, correction_tau=0.0,
+                            held_first=held_first).rotations
+    step = rot.angle_between(out[1:], out[:-1]).max(axis=1)
+    jumps = step > 3 * np.median(step)
+    np.testing.assert_array_equal(jumps[60:], switch_mask(T, hop, True, held_first)[60:])
+    assert not np.array_equal(jumps[60:], switch_mask(T, hop, True, 1 - held_first)[60:])
+
+
 def test_floor_penetration_sees_a_foot_through_the_floor_and_not_one_above_it():
     still = planted_foot_positions()
     assert M.floor_penetration(still, still).max() == 0.0
