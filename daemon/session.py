@@ -6,7 +6,10 @@ stream needs around it:
 
 * Rate and time: a source stamps frames in its own time base at its own rate; the
   session's ``StreamResampler`` puts them on the 60 Hz output grid (slerp) and a fixed
-  offset maps source time onto the daemon clock.
+  offset maps source time onto the daemon clock. A source at half the output rate
+  brings its frames in pairs; where every word can end on a source frame (an even hop,
+  after a held copy of the first frame: ``words.half_rate_shift``) it is shown ``delay``
+  frames after each frame's own time like a 60 Hz one, else a frame behind each pair.
 * Frame indices count (resampled) input frames in arrival order. Output frame t is rendered ``delay``
   frames after input frame t arrived (the blender's latency model), one frame per tick
   of the daemon's 60 Hz output clock.
@@ -190,6 +193,8 @@ class Session:
                 self.lead = 0  # the new grid's anchor may sit on an odd frame: no longer sure
             elif not self._rate_known and self.cutter.frames_seen == 1:
                 words += self._learn_rate(grid, frame)
+            elif self.lead and grid and not self._ends_pair(grid, frame):
+                self.lead = 0  # an irregular sender: word ends may fall between its frames
             for grid_frame in grid:
                 words += self.push(self._on_daemon_clock(grid_frame, now, restarts))
         self._burst = self.cutter.frames_seen - before
@@ -199,11 +204,18 @@ class Session:
             words += self.push(PoseFrame(self.performer, arrival, root, rotations), held=True)
         return words
 
+    def _ends_pair(self, grid: list, frame: PoseFrame) -> bool:
+        # The source frame is the last grid frame it brings, at an index of the parity the
+        # word ends have (the first frame's, past its held copies).
+        index = self.cutter.frames_seen + len(grid) - 1
+        return (abs(grid[-1].timestamp - frame.timestamp) <= self.resampler.ON_GRID
+                and (index - self.held_first) % 2 == 0)
+
     def _learn_rate(self, grid: list, frame: PoseFrame) -> list[tuple[int, np.ndarray]]:
         # The second source frame of the stream: at half the output rate it brings two
         # grid frames, the second on the grid at its own time.
         self._rate_known = True
-        half_rate = len(grid) == 2 and abs(grid[1].timestamp - frame.timestamp) <= self.resampler.ON_GRID
+        half_rate = len(grid) == 2 and self._ends_pair(grid, frame)
         shift = half_rate_shift(self.settings.hop, self.settings.word_length, self.phase) if half_rate else None
         if shift is None:
             return []

@@ -161,3 +161,40 @@ def test_a_30_hz_stream_is_shown_delay_periods_after_each_frame_where_its_words_
     new = sorted(set(indices))
     assert new[0] == s.held_first and indices[:len(new)] == new  # one new frame a tick, none twice
     assert s.blender.late_frames == 0 and s.skipped == 0
+
+
+def test_a_30_hz_sender_that_turns_irregular_loses_the_lead_and_no_word_comes_late():
+    """The lead rests on every source frame landing on the grid at the word ends' parity.
+    A sender whose frames start to wander off it (a few ms, from frame 20 on) is shown a
+    period behind each pair from then on: no frame late, none skipped, one held where the
+    lead drops."""
+    from stylecast.daemon.restylers import StandInRestyler
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
+    from stylecast.motion.clip import PoseFrame
+
+    class Wandering(ReplaySource):
+        def poll(self, now):
+            return [PoseFrame(f.performer, f.timestamp + (0.003 if round(f.timestamp * 30) >= 20 else 0.0),
+                              f.root_position, f.rotations) for f in super().poll(now)]
+
+    frames = []
+    source = Wandering(performer_walk(), "p0")
+    daemon = Daemon(DaemonConfig(hop=4, delay=5, control="off"), [source], StandInRestyler(), FakeClock(),
+                    frame_taps=[frames.append], log_status=False)
+    leads = []
+    try:
+        daemon.start()
+        while not daemon.finished:
+            daemon.step()
+            leads.append(daemon.sessions[0].lead)
+            daemon.clock.advance(1 / OUTPUT_FPS)
+    finally:
+        daemon.close()
+    s = daemon.sessions[0]
+    assert leads[5] == 1 and leads[-1] == 0 and s.held_first == 1
+    assert 38 <= leads.index(0, 5) <= 42  # at the first wandering frame (source frame 20, tick 40)
+    indices = [f.index for f in frames]
+    new = sorted(set(indices))
+    assert new == list(range(1, len(new) + 1)) and s.blender.late_frames == 0 and s.skipped == 0
+    assert s.held == 1 and len(indices) - len(new) == 1
+    assert s.stream_frames - 1 == new[-1]  # every frame shown, to the last
