@@ -101,7 +101,9 @@ def settle_frames(sessions: list["Session"], pending: list[PendingFrame]) -> Non
     inputs = np.stack([p.input_rotations for p in pending])
     blended = render_planned([(s.blender, p.runs, inputs[k:k + 1]) for k, (s, p) in enumerate(zip(sessions, pending))])
     smoothed = keep_hinges(inputs, filter_frames([s.smoothing for s in sessions], inputs, np.concatenate(blended)))
-    jobs = plan_locks([(s.feet, p.index, p.input_root, p.input_rotations, smoothed[k], planned_mix(p.runs, 1))
+    # The foot lock counts the source's frames: a held first frame is never shown, nor pushed to it.
+    jobs = plan_locks([(s.feet, p.index - s.held_first, p.input_root, p.input_rotations, smoothed[k],
+                        planned_mix(p.runs, 1))
                        for k, (s, p) in enumerate(zip(sessions, pending))])
     for frame, job in zip(pending, jobs):
         frame.lock = job
@@ -221,7 +223,9 @@ class Session:
             return []
         self.lead, self.held_first = 1, shift
         _, arrival, root, rotations = self._inputs[-1]
-        return self.push(PoseFrame(self.performer, arrival, root, rotations), held=True) if shift else []
+        # Not the foot lock's: a frame standing still would read as a contact there, and a
+        # foot in the air at the start would set a floor the lock then drops (a popped knee).
+        return self.push(PoseFrame(self.performer, arrival, root, rotations), held=True, feet=False) if shift else []
 
     @property
     def stream_frames(self) -> int:
@@ -248,12 +252,13 @@ class Session:
             push_feet([self])  # the frames before the change on the legs they came with
             self.feet.set_offsets(skeleton.offsets)  # the lock's legs are the performer's
 
-    def push(self, frame: PoseFrame, held: bool = False) -> list[tuple[int, np.ndarray]]:
+    def push(self, frame: PoseFrame, held: bool = False, feet: bool = True) -> list[tuple[int, np.ndarray]]:
         t = self.cutter.frames_seen
         rotations = np.asarray(frame.rotations, dtype=np.float64)
         root = np.asarray(frame.root_position, np.float64)
         self._inputs.append((t, float(frame.timestamp), root, rotations))
-        self._feet_frames.append((root, rotations))  # contacts: ``push_feet``, once a tick for all
+        if feet:
+            self._feet_frames.append((root, rotations))  # contacts: ``push_feet``, once a tick for all
         if not held:
             self.frames_in += 1
         if self._style_progress < 1.0:

@@ -506,8 +506,9 @@ def restyle_stream(rotations: np.ndarray, restyle_words, settings: BlendSettings
     if feet is None:
         return Restyled(out, None if roots is None else roots[first:])
     # The daemon holds an ended source's last frame for at least ``delay`` >= ramp frames.
+    # The lock counts the shown frames: the ``first`` are not its (as the daemon's).
     tail = max(held, feet.ramp)
-    feet.push(np.concatenate([roots, np.repeat(roots[-1:], tail, axis=0)]),
-              np.concatenate([rotations, np.repeat(rotations[-1:], tail, axis=0)]))
-    new_roots, locked = feet.apply(first, roots[first:], shown, out, planned_mix(runs, T - first))
+    feet.push(np.concatenate([roots[first:], np.repeat(roots[-1:], tail, axis=0)]),
+              np.concatenate([shown, np.repeat(rotations[-1:], tail, axis=0)]))
+    new_roots, locked = feet.apply(0, roots[first:], shown, out, planned_mix(runs, T - first))
     return Restyled(locked, new_roots)

@@ -228,6 +228,27 @@ def test_serve_covers_ground_at_the_styles_pace_unless_told_to_keep_the_performe
 
 
 @pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")
+def test_a_held_start_is_not_the_foot_locks(bandai_root):
+    """The held copies a half-rate stream starts with are never shown and never reach the
+    foot lock: four of them (the word grid's phase unchanged at hop 4) leave a run's
+    output as it was. Seen by the lock, a held copy read as a foot standing still, a
+    foot in the air at the start set a floor that later dropped, and a knee popped 10
+    degrees in one frame about 30 frames in (1.62x the input's largest jerk)."""
+    from stylecast.drivers.bvh.bvh_replay import humanoid_motion
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.bvh import read_bvh
+    from stylecast.motion.resample import resample
+
+    motion = resample(humanoid_motion(read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_run_normal_010.bvh.gz")),
+                      60.0)
+    restyler = Restyler.load(str(CHECKPOINT))
+    plain, held = (offline(motion, restyler, 4, held_first=k) for k in (0, 4))
+    assert rot.angle_between(plain.rotations, held.rotations).max() < 1e-6
+    np.testing.assert_allclose(plain.roots, held.roots, atol=1e-6)
+    assert rot.angle_between(plain.rotations, motion.rotations).max() > 1.0  # restyled, and locked
+
+
+@pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")
 @pytest.mark.parametrize("feet", sorted(FEET))
 def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root, feet):
     """The real path end to end: a Bandai BVH replayed by the daemon (bvh source: read,
