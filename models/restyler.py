@@ -169,6 +169,20 @@ class Restyler:
         x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
         return self._generate(x.to(self.device), direction).cpu().numpy()
 
+    def to_device(self, array: np.ndarray):
+        """A numpy array as a tensor on the model's device. On the CPU, shared with the
+        array and without a torch operation: each operation releases the GIL and waits to
+        win it back, which the daemon's model thread pays beside the output loop."""
+        import torch
+
+        t = torch.from_numpy(np.ascontiguousarray(array))
+        return t if self.device.type == "cpu" else t.to(self.device)
+
+    @staticmethod
+    def to_host(tensor) -> np.ndarray:
+        """A tensor as a numpy array, without a torch operation for one on the CPU."""
+        return tensor.numpy() if tensor.device.type == "cpu" else tensor.cpu().numpy()
+
     def _network(self, batch: int, direction: str | None = None) -> tuple:
         """The generator module a batch of ``batch`` words goes through and the tensors
         that condition it (none for a pair model)."""
@@ -203,15 +217,14 @@ class Restyler:
         from . import representation_torch as RT
 
         is_tensor = isinstance(words, torch.Tensor)
-        w = words.to(self.device, RT.DTYPE) if is_tensor else \
-            torch.from_numpy(np.asarray(words, dtype=np.float64)).to(self.device)
+        w = words.to(self.device, RT.DTYPE) if is_tensor else self.to_device(np.asarray(words, dtype=np.float64))
         _check_words_shape(tuple(w.shape))
         if len(w) == 0:
             out = w.clone()
         else:
             network, conditioning = self._network(len(w), direction)
             out = pipeline.restyle(network, self.torch_representation, w.contiguous(), conditioning)
-        return out if is_tensor else out.cpu().numpy()
+        return out if is_tensor else self.to_host(out)
 
     def restyle_stream_words(self, words: np.ndarray, *args) -> tuple[np.ndarray, np.ndarray]:
         """The daemon's model-thread call (``daemon.inference``): words (B, 60, 22, 4) in
@@ -219,15 +232,13 @@ class Restyler:
         each word usable), in one traced call (``pipeline.StreamWordPipeline``); the same
         bits as ``restyle_words`` on the words made continuous in time, then made
         continuous. ``args`` as ``restyle_words``'s."""
-        import torch
-
         from . import pipeline
 
-        w = torch.from_numpy(np.asarray(words, dtype=np.float64)).to(self.device)
+        w = self.to_device(np.asarray(words, dtype=np.float64))
         _check_words_shape(tuple(w.shape))
         network, conditioning = self._network(len(w), *args)
-        out, ok = pipeline.restyle_for_stream(network, self.torch_representation, w.contiguous(), conditioning)
-        return out.cpu().numpy(), ok.cpu().numpy()
+        out, ok = pipeline.restyle_for_stream(network, self.torch_representation, w, conditioning)
+        return self.to_host(out), self.to_host(ok)
 
     def warm_up(self) -> None:
         """Each generator this model can run live (both directions) called once on one
