@@ -210,8 +210,7 @@ class Session:
         # The source frame is the last grid frame it brings, at an index of the parity the
         # word ends have (the first frame's, past its held copies).
         index = self.cutter.frames_seen + len(grid) - 1
-        return (abs(grid[-1].timestamp - frame.timestamp) <= self.resampler.ON_GRID
-                and (index - self.held_first) % 2 == 0)
+        return self.resampler.snapped and (index - self.held_first) % 2 == 0
 
     def _learn_rate(self, grid: list, frame: PoseFrame) -> list[tuple[int, np.ndarray]]:
         # The second source frame of the stream: at half the output rate it brings two

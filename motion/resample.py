@@ -6,6 +6,8 @@ input, so 30 -> 60 -> 30 fps returns the original frames (slerp at a key is the 
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from . import rotations as rot
@@ -54,6 +56,23 @@ class StreamResampler:
     after its time has arrived, so this adds at most one source frame period of latency.
     A source frame that falls on the grid (a 60 Hz source) is passed through unchanged.
 
+    A sender at the output rate or a whole fraction of it (60, 30, 20, 15 Hz) whose stamps
+    are rounded or jitter is *locked* (``locked``: over its last ``LOCK_INTERVALS`` frame
+    intervals, each counted as the whole number of grid steps nearest it, at least one,
+    the time per step within ``LOCK_BAND`` of the grid's, or their sum within ``SNAP``). Its frame within ``SNAP`` of a
+    grid time is that grid frame: its poses are taken at its own rate and the noise is in
+    the stamps. The grid follows its frames by ``FOLLOW`` of each one's offset (a
+    first-order loop), so a sender a little off the rate (59.94 Hz, a clock 100 ppm fast)
+    stays on it, 0.13 ms behind at 59.94 Hz. Real senders
+    stamp /VMC/Ext/T with their uptime as a float32 (Unity's ``Time.time``), rounded to
+    0.12 ms after 20 minutes. With the exact test alone, half of a 60 Hz sender's frames
+    landed a hair before their grid time, and each then waited a whole period for the next
+    frame. At hop 4 / delay 5 that cost a 60 Hz sender a frame (p99 104 against 90 ms) and
+    a 30 Hz one two (121 against 87 ms) (the daemon README's latency model). Any other rate
+    (72, 90, 144 Hz, irregular) is interpolated at the grid's own times, as before: snapping
+    its frames would shift them by up to ``SNAP`` at uneven moments and show as jerk.
+    ``snapped``: the last grid frame ``feed`` returned is the source frame itself.
+
     A gap longer than ``max_gap`` (the sender paused) or time going backwards (the
     sender restarted) re-anchors the grid at the new frame instead of interpolating
     across it (``restarts`` counts them); a frame with an old or equal time is dropped
@@ -61,6 +80,13 @@ class StreamResampler:
     """
 
     ON_GRID = 1e-6  # seconds: a source time this close to a grid time is that grid frame
+    SNAP = 0.25  # of a grid step (4.2 ms at 60 fps): a locked sender's frame this close is on the grid
+    FOLLOW = 0.125  # of a snapped frame's offset the grid moves towards it
+    # Stamps jittering by 1.5 ms move a 60 Hz sender's time per step over 32 intervals by
+    # 0.6 % at most; 57 Hz is 5 % off and must not lock: snapped whenever its frames drift
+    # near the grid, it would jerk.
+    LOCK_BAND = 0.01
+    LOCK_INTERVALS = 32
 
     def __init__(self, fps: float, max_gap: float = 0.25):
         if not fps > 0:
@@ -70,14 +96,43 @@ class StreamResampler:
         self._prev = None
         self._t0 = 0.0
         self._k = 0
+        self._intervals: deque = deque()  # (seconds, grid steps) of the last LOCK_INTERVALS
+        self._span = self._steps = 0.0  # their sums, kept as they come and go
         self.restarts = 0
         self.stale = 0
+        self.snapped = False
 
     def _anchor(self, frame):
         if self._prev is not None:
             self.restarts += 1
         self._prev, self._t0, self._k = frame, float(frame.timestamp), 1
+        self._intervals.clear()
+        self._span = self._steps = 0.0
+        self.snapped = True
         return [frame]
+
+    def _count(self, interval: float) -> None:
+        # Each interval counted as whole grid steps, so a dropped frame (two steps) keeps
+        # the time per step; running sums, as this runs per frame and performer.
+        steps = max(1, round(interval / self.step))
+        self._intervals.append((interval, steps))
+        self._span += interval
+        self._steps += steps
+        if len(self._intervals) > self.LOCK_INTERVALS:
+            old, old_steps = self._intervals.popleft()
+            self._span -= old
+            self._steps -= old_steps
+
+    @property
+    def locked(self) -> bool:
+        """The sender runs at the output rate or a whole fraction of it (``LOCK_BAND``)."""
+        # Or their whole error within SNAP, so a stream's second frame can tell (the
+        # daemon's session decides a half-rate start there): 33.3 ms give or take 0.3 % is
+        # more than the sender's scheduling keeps to, and a rate this lets in for a frame
+        # or two (50, 72 Hz) drops out on the next.
+        expected = self._steps * self.step
+        return bool(self._intervals) and abs(self._span - expected) <= max(self.LOCK_BAND * expected,
+                                                                             self.SNAP * self.step)
 
     def feed(self, frame) -> list:
         from .clip import PoseFrame
@@ -88,15 +143,23 @@ class StreamResampler:
             return self._anchor(frame)
         if t <= prev.timestamp:
             self.stale += 1
+            self.snapped = False
             return []
         out = []
         t_prev, span = float(prev.timestamp), t - float(prev.timestamp)
+        self._count(span)
+        locked = self.locked
+        on_grid = self.SNAP * self.step if locked else self.ON_GRID
+        self.snapped = False
         while True:
-            g = self._t0 + self._k * self.step  # from the anchor, so the grid never drifts
-            if g > t + self.ON_GRID:
+            g = self._t0 + self._k * self.step  # from the anchor, so the grid never drifts...
+            if g > t + on_grid:
                 break
-            if abs(g - t) <= self.ON_GRID:
+            if abs(g - t) <= on_grid:
+                if locked and abs(g - t) > self.ON_GRID:
+                    self._t0 += self.FOLLOW * (t - g)  # ...but follows a locked sender's frames
                 out.append(PoseFrame(frame.performer, g, frame.root_position, frame.rotations))
+                self.snapped = True
             else:
                 a = (g - t_prev) / span
                 out.append(PoseFrame(frame.performer, g,
