@@ -1,10 +1,11 @@
 """Added latency of a live VMC sender by how it stamps its frames (/VMC/Ext/T). Prints a
 table; not a test.
 
-    python bench/bench_stamps.py [--runs 3] [--seconds 10] [--model M]
+    python bench/bench_stamps.py [--runs 3] [--seconds 10] [--model M] [--latency default|low|relaxed]
 
 A sender process sends the shipped walk over loopback at 60 or 30 Hz, paced by its own
-clock, to a daemon at serve's default (hop 4, delay 5) with the shipped model. Its stamps:
+clock, to a daemon at serve's default (hop 4, delay 5; ``--latency``: another preset) with
+the shipped model. Its stamps:
 - ``exact``: frame index / rate from 0, as `bench_daemon.py latency` replays (the baseline);
 - ``uptime``: the same from 1234.5 s, sent as OSC's float32: rounded to 0.12 ms, as a real
   sender's uptime is (VirtualMotionCapture and VSeeFace send Unity's ``Time.time``);
@@ -54,7 +55,7 @@ def send(port: int, rate: float, stamp: str, seconds: float, ready) -> None:
     sender.close()
 
 
-def one_run(rate: float, stamp: str, seconds: float, model) -> dict:
+def one_run(rate: float, stamp: str, seconds: float, model, latency: str) -> dict:
     from stylecast.daemon.config import DaemonConfig
     from stylecast.daemon.engine import Daemon
     from stylecast.drivers.sources import open_source
@@ -65,7 +66,7 @@ def one_run(rate: float, stamp: str, seconds: float, model) -> dict:
     sender = mp.get_context("spawn").Process(target=send, args=(source.receiver.address[1], rate, stamp,
                                                                 seconds + 2.0, ready))
     sender.start()
-    daemon = Daemon(DaemonConfig(latency="default", control="off"), [source], model, RealClock(), log_status=False)
+    daemon = Daemon(DaemonConfig(latency=latency, control="off"), [source], model, RealClock(), log_status=False)
     stop = threading.Event()
     try:
         daemon.start()
@@ -87,18 +88,24 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=10.0)
     ap.add_argument("--model", default=None, help="serve --model (default: the shipped one)")
+    ap.add_argument("--latency", default="default", help="serve --latency preset (default: default)")
     args = ap.parse_args()
+    from stylecast.daemon.latency import LATENCY_PRESETS
     from stylecast.daemon.restylers import load_restyler
+
+    if args.latency not in LATENCY_PRESETS:
+        ap.error(f"--latency must be one of {', '.join(LATENCY_PRESETS)}, got {args.latency!r}")
+    preset = LATENCY_PRESETS[args.latency]
 
     model = load_restyler(args.model or "normal2exhausted")
     print("machine: " + describe())
-    print(f"hop 4, delay 5 (serve's default), model {args.model or 'normal2exhausted'}, {args.seconds:g} s a run, "
-          f"median of {args.runs} runs")
+    print(f"--latency {args.latency}: {preset.about}; model {args.model or 'normal2exhausted'}, "
+          f"{args.seconds:g} s a run, median of {args.runs} runs")
     print("| rate | stamps | latency p50 ms | p99 ms | max ms | holds | skips | late | final delay | locked |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for rate in (60.0, 30.0):
         for stamp in STAMPS:
-            runs = [one_run(rate, stamp, args.seconds, model) for _ in range(args.runs)]
+            runs = [one_run(rate, stamp, args.seconds, model, args.latency) for _ in range(args.runs)]
             med = {k: statistics.median(r[k] for r in runs) for k in ("p50", "p99", "max")}
             print(f"| {rate:g} Hz | {stamp} | {med['p50']:.1f} | {med['p99']:.1f} | {med['max']:.1f} | "
                   f"{sum(r['held'] for r in runs)} | {sum(r['skipped'] for r in runs)} | "

@@ -193,6 +193,8 @@ class MultiStyleRestyler(Restyler):
         if weights is None:
             w = np.broadcast_to(np.asarray(self.weights, np.float32), (batch, len(self.style_names)))
         else:
+            if hasattr(weights, "detach"):  # a tensor, on any device
+                weights = weights.detach().cpu().numpy()
             w = np.asarray(weights, np.float32)
             if w.shape != (batch, len(self.style_names)):
                 raise ValueError(f"style weights must have shape ({batch}, {len(self.style_names)}), got {w.shape}")
