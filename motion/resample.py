@@ -57,20 +57,21 @@ class StreamResampler:
     A source frame that falls on the grid (a 60 Hz source) is passed through unchanged.
 
     A sender at the output rate or a whole fraction of it (60, 30, 20, 15 Hz) whose stamps
-    are rounded or jitter is *locked* (``locked``: over its last ``LOCK_INTERVALS`` frame
-    intervals, each counted as the whole number of grid steps nearest it, at least one,
-    the time per step within ``LOCK_BAND`` of the grid's, or their sum within ``SNAP``). Its frame within ``SNAP`` of a
-    grid time is that grid frame: its poses are taken at its own rate and the noise is in
-    the stamps. The grid follows its frames by ``FOLLOW`` of each one's offset (a
-    first-order loop), so a sender a little off the rate (59.94 Hz, a clock 100 ppm fast)
-    stays on it, 0.13 ms behind at 59.94 Hz. Real senders
-    stamp /VMC/Ext/T with their uptime as a float32 (Unity's ``Time.time``), rounded to
-    0.12 ms after 20 minutes. With the exact test alone, half of a 60 Hz sender's frames
-    landed a hair before their grid time, and each then waited a whole period for the next
-    frame. At hop 4 / delay 5 that cost a 60 Hz sender a frame (p99 104 against 90 ms) and
-    a 30 Hz one two (121 against 87 ms) (the daemon README's latency model). Any other rate
-    (72, 90, 144 Hz, irregular) is interpolated at the grid's own times, as before: snapping
-    its frames would shift them by up to ``SNAP`` at uneven moments and show as jerk.
+    are rounded or jitter is *locked* (``locked``): over its last ``LOCK_INTERVALS`` frame
+    intervals, each counted as the whole number of grid steps nearest it (at least one),
+    the time per step is within ``LOCK_BAND`` of the grid's, or their whole error within
+    ``SNAP``. Its frame within ``SNAP`` of a grid time is that grid frame, as sent: its
+    poses are taken at its own rate, and the noise is in the stamps. The grid follows its
+    frames by ``FOLLOW`` of each one's offset (a first-order loop), so a sender a little
+    off the rate (59.94 Hz, a clock 100 ppm fast) stays on it, 0.13 ms behind at 59.94 Hz.
+    Real senders stamp /VMC/Ext/T with their uptime as a float32 (Unity's ``Time.time``),
+    rounded to 0.12 ms after 20 minutes. Taken exactly, half of their frames landed a hair
+    before their grid time and each waited a whole period for the next frame: at hop 4 /
+    delay 5 a 60 Hz sender's p99 was 108 ms against 90 with exact stamps, a 30 Hz one's
+    123 against 90 (``bench/bench_stamps.py``); and interpolating between noisy stamps
+    shook the motion (1.5 ms of jitter: 1.73x the root's jerk). Other rates (50, 72, 90,
+    120, 144 Hz, irregular) are interpolated at the grid's own times, as before: snapping
+    their frames would shift them by up to ``SNAP`` at uneven moments, which shows as jerk.
     ``snapped``: the last grid frame ``feed`` returned is the source frame itself.
 
     A gap longer than ``max_gap`` (the sender paused) or time going backwards (the
@@ -126,10 +127,10 @@ class StreamResampler:
     @property
     def locked(self) -> bool:
         """The sender runs at the output rate or a whole fraction of it (``LOCK_BAND``)."""
-        # Or their whole error within SNAP, so a stream's second frame can tell (the
-        # daemon's session decides a half-rate start there): 33.3 ms give or take 0.3 % is
-        # more than the sender's scheduling keeps to, and a rate this lets in for a frame
-        # or two (50, 72 Hz) drops out on the next.
+        # Or their whole error within SNAP: the session judges a half-rate start on the
+        # stream's second frame, with one interval to go on, and 1 % of it (0.3 ms) is less
+        # than a sender's scheduling keeps to. A rate this lets in for an interval or two
+        # (50, 72 Hz) drops out on the next.
         expected = self._steps * self.step
         return bool(self._intervals) and abs(self._span - expected) <= max(self.LOCK_BAND * expected,
                                                                              self.SNAP * self.step)
