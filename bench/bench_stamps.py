@@ -10,7 +10,9 @@ the shipped model. Its stamps:
 - ``uptime``: the same from 1234.5 s, sent as OSC's float32: rounded to 0.12 ms, as a real
   sender's uptime is (VirtualMotionCapture and VSeeFace send Unity's ``Time.time``);
 - ``clock``: its own clock when it sends, from 1234.5 s, float32: the rounding and its
-  scheduling jitter.
+  scheduling jitter;
+- ``epoch``: Unix time, float32: 128 s steps, every frame the same T (timed by arrival:
+  ``drivers.vmc.sender_time``; before 2026-11-29 such a performer was never shown).
 Latency: the daemon's own figure per output frame (sent - the frame's source time on the
 daemon's clock), p50 / p99 / max; median over ``--runs`` runs of each. Holds and skips:
 output frames repeated, input frames skipped (the ring absorbing a stall).
@@ -30,6 +32,7 @@ STAMPS = {
     "exact": lambda i, rate, elapsed: i / rate,
     "uptime": lambda i, rate, elapsed: 1234.5 + i / rate,
     "clock": lambda i, rate, elapsed: 1234.5 + elapsed,
+    "epoch": lambda i, rate, elapsed: time.time(),
 }
 
 

@@ -184,6 +184,63 @@ def test_a_sender_stamping_its_uptime_is_shown_delay_periods_after_each_frame(ra
     assert indices[:len(new)] == new and s.blender.late_frames == 0 and s.skipped == 0
 
 
+def test_a_sender_stamping_unix_time_is_timed_by_arrival_and_shown(caplog):
+    """/VMC/Ext/T is a float32: Unix time in it moves in 128 s steps, so every frame carries
+    the same T. The resampler dropped each as no later than the one before, and the
+    performer was never shown (run on the code before: no frame in 3 s). Now the sender's
+    clock is given up after a few frames in a row with the same T, with one warning, and
+    its frames are timed by arrival: a real sender thread at 60 Hz over loopback, real
+    clock, shown at about the delay."""
+    import threading
+
+    from stylecast.daemon.restylers import StandInRestyler
+    from stylecast.motion.clock import RealClock
+
+    motion = resample(performer_walk(), 60.0)
+    source = open_source("vmc://127.0.0.1:0?input=bones", "p0")
+    frames = []
+    daemon = Daemon(DaemonConfig(hop=4, delay=5, control="off"), [source], StandInRestyler(), RealClock(),
+                    frame_taps=[frames.append], log_status=False)
+    stop = threading.Event()
+
+    def send():
+        sender = VmcSender([source.receiver.address])
+        t0 = time.perf_counter()
+        for i in range(motion.num_frames):
+            time.sleep(max(0.0, t0 + i / 60 - time.perf_counter()))
+            if stop.is_set():
+                break
+            sender.send_frame(motion.root_positions[i], motion.rotations[i], motion.skeleton.offsets, time.time())
+        sender.close()
+
+    thread = threading.Thread(target=send, daemon=True)
+    try:
+        daemon.start()
+        thread.start()
+        threading.Timer(3.0, stop.set).start()
+        with caplog.at_level("WARNING", logger="stylecast.drivers.vmc"):
+            daemon.run(stop)
+    finally:
+        stop.set()
+        thread.join(timeout=2.0)
+        daemon.close()
+    s = daemon.sessions[0]
+    assert not source.sender_time.trusted and "timing its frames by their arrival" in caplog.text
+    assert len({f.index for f in frames}) >= 120  # of ~175 sent in 3 s, less the delay and the start
+    assert s.latency.percentile(50) < 0.1 and s.blender.late_frames == 0
+
+
+def test_the_sender_time_is_kept_through_repeats_and_restarts_and_given_up_when_it_stands_still():
+    from stylecast.drivers.vmc.sender_time import STUCK_FRAMES, SenderTime
+
+    clock = SenderTime("p")
+    assert [clock.stamp(t, 100.0 + t) for t in (5.0, 5.0, 5.1, 0.2, 0.3)] == [5.0, 5.0, 5.1, 0.2, 0.3]
+    assert clock.stamp(None, 42.0) == 42.0 and clock.trusted  # a frame without T: its arrival
+    stamps = [clock.stamp(7.0, 200.0 + k) for k in range(STUCK_FRAMES + 2)]
+    assert stamps[:STUCK_FRAMES] == [7.0] * STUCK_FRAMES and stamps[STUCK_FRAMES:] == [203.0, 204.0]
+    assert not clock.trusted and clock.stamp(9.0, 300.0) == 300.0  # for good
+
+
 def _stamped(times, fps_of_motion: float = 60.0):
     """PoseFrames at ``times`` whose root x is the true time in ms (what a pose at that
     time would show), for the resampler tests."""

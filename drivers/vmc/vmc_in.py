@@ -77,6 +77,7 @@ from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.unity import (position_from_unity, position_to_unity, rotation_from_unity)
 
 from stylecast.drivers.vmc.osc_packets import check_port, decode
+from stylecast.drivers.vmc.sender_time import SenderTime
 from stylecast.drivers.urls import parse_vmc_url
 
 if TYPE_CHECKING:
@@ -512,6 +513,7 @@ class VmcSource:
         self._bone_skeleton = None
         self._last_bones = -math.inf
         self.unmapped_trackers = 0
+        self.sender_time = SenderTime(performer)
 
     @property
     def skeleton(self):
@@ -543,17 +545,15 @@ class VmcSource:
                 key = (t.kind, t.serial, t.local)
                 if key in self.trackers or len(self.trackers) < MAX_TRACKERS_KEPT:  # bounded: serials are free text
                     self.trackers[key] = t
+            # Stamped with the sender's own time (/VMC/Ext/T) when it sends a usable one
+            # (``SenderTime``): the session resamples by it, so receive jitter does not
+            # become motion jitter.
+            stamp = self.sender_time.stamp(f.sender_time, f.timestamp)
             if f.pose is not None and self.input != "trackers":
-                # Stamped with the sender's own time (/VMC/Ext/T) when it sends one: the
-                # session resamples by it, so receive jitter does not become motion jitter.
-                if f.sender_time is not None:
-                    bones.append(PoseFrame(f.pose.performer, f.sender_time, f.pose.root_position, f.pose.rotations))
-                else:
-                    bones.append(f.pose)
+                bones.append(PoseFrame(f.pose.performer, stamp, f.pose.root_position, f.pose.rotations))
                 self._learn_skeleton(f.offsets)
             if f.trackers and self.solved is not None:
-                samples = samples_from_vmc(f.trackers, f.sender_time if f.sender_time is not None else f.timestamp,
-                                           self.role_map)
+                samples = samples_from_vmc(f.trackers, stamp, self.role_map)
                 self.unmapped_trackers += len({t.serial for t in f.trackers}) - len(samples)
                 self._feed.samples += samples
         if bones:
