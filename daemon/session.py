@@ -194,8 +194,8 @@ class Session:
             if self.resampler.restarts != restarts:
                 self.lead = 0  # the new grid's anchor may sit on an odd frame: no longer sure
             elif not self._rate_known and self.cutter.frames_seen == 1:
-                words += self._learn_rate(grid, frame)
-            elif self.lead and grid and not self._ends_pair(grid, frame):
+                words += self._learn_rate(grid)
+            elif self.lead and grid and not self._ends_pair(grid):
                 self.lead = 0  # an irregular sender: word ends may fall between its frames
             for grid_frame in grid:
                 words += self.push(self._on_daemon_clock(grid_frame, now, restarts))
@@ -206,17 +206,17 @@ class Session:
             words += self.push(PoseFrame(self.performer, arrival, root, rotations), held=True)
         return words
 
-    def _ends_pair(self, grid: list, frame: PoseFrame) -> bool:
-        # The source frame is the last grid frame it brings, at an index of the parity the
-        # word ends have (the first frame's, past its held copies).
+    def _ends_pair(self, grid: list) -> bool:
+        # The source frame is the last grid frame it brings (the resampler snapped it), at
+        # an index of the parity the word ends have (the first frame's, past its held copies).
         index = self.cutter.frames_seen + len(grid) - 1
         return self.resampler.snapped and (index - self.held_first) % 2 == 0
 
-    def _learn_rate(self, grid: list, frame: PoseFrame) -> list[tuple[int, np.ndarray]]:
+    def _learn_rate(self, grid: list) -> list[tuple[int, np.ndarray]]:
         # The second source frame of the stream: at half the output rate it brings two
         # grid frames, the second on the grid at its own time.
         self._rate_known = True
-        half_rate = len(grid) == 2 and self._ends_pair(grid, frame)
+        half_rate = len(grid) == 2 and self._ends_pair(grid)
         shift = half_rate_shift(self.settings.hop, self.settings.word_length, self.phase) if half_rate else None
         if shift is None:
             return []
