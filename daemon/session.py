@@ -163,10 +163,13 @@ class Session:
         self._burst = 0  # frames the last ingest brought
         # A half-rate source (30 fps) whose word ends all fall on its own frames is shown a
         # period sooner (``words.half_rate_shift``): ``lead`` 1, after ``held_first`` held
-        # copies of its first frame. Decided on the stream's second source frame.
-        self._rate_known = False
+        # copies of its first frame. Decided on the first source frame after the stream's
+        # first that brings grid frames, and again after each restart of its time base
+        # (``held_realigned`` counts the held frames such a restart took to realign it).
+        self._rate_pending = False
         self.lead = 0
         self.held_first = 0
+        self.held_realigned = 0
 
     @property
     def intensity(self) -> float:
@@ -191,14 +194,20 @@ class Session:
         for frame in self.source.poll(now):
             restarts = self.resampler.restarts
             grid = self.resampler.feed(frame)
-            if self.resampler.restarts != restarts:
-                self.lead = 0  # the new grid's anchor may sit on an odd frame: no longer sure
-            elif not self._rate_known and self.cutter.frames_seen == 1:
+            anchored = self.resampler.restarts != restarts or not self.cutter.frames_seen
+            if anchored:
+                self._rate_pending = True  # a grid's anchor: the rate is learnt after it
+            elif self._rate_pending and grid:
                 words += self._learn_rate(grid)
             elif self.lead and grid and not self._ends_pair(grid):
                 self.lead = 0  # an irregular sender: word ends may fall between its frames
             for grid_frame in grid:
                 words += self.push(self._on_daemon_clock(grid_frame, now, restarts))
+            if anchored and self.lead and self._off_parity():
+                # A half-rate stream restarted (a pause, the sender's clock replaced): its anchor
+                # held once more at once keeps the frames' count and the word ends' parity, where
+                # waiting for the next frame to tell the rate would cost a held tick and a skip.
+                words += self._hold_anchor()
         self._burst = self.cutter.frames_seen - before
         self._check_skeleton()
         if self.source.finished and self._inputs and self.cutter.frames_seen < self.stream_frames + self.settings.delay:
@@ -208,29 +217,48 @@ class Session:
 
     def _ends_pair(self, grid: list) -> bool:
         # The source frame is the last grid frame it brings (the resampler snapped it), at
-        # an index of the parity the word ends have (the first frame's, past its held copies).
+        # an index of the word ends' parity (``lead`` is only ever set where they have one).
         index = self.cutter.frames_seen + len(grid) - 1
-        return self.resampler.snapped and (index - self.held_first) % 2 == 0
+        return self.resampler.snapped and (index - self._end_parity()) % 2 == 0
+
+    def _end_parity(self) -> int | None:
+        return half_rate_shift(self.settings.hop, self.settings.word_length, self.phase)
+
+    def _off_parity(self) -> bool:
+        # The frame last pushed, a source frame, is not at the word ends' parity.
+        return (self.cutter.frames_seen - 1 - self._end_parity()) % 2 != 0
 
     def _learn_rate(self, grid: list) -> list[tuple[int, np.ndarray]]:
-        # The second source frame of the stream: at half the output rate it brings two
-        # grid frames, the second on the grid at its own time.
-        self._rate_known = True
-        half_rate = len(grid) == 2 and self._ends_pair(grid)
-        shift = half_rate_shift(self.settings.hop, self.settings.word_length, self.phase) if half_rate else None
-        if shift is None:
+        # The first source frame after the grid's anchor that brings grid frames: at half the
+        # output rate it brings two, the second on the grid at its own time. Its frames then
+        # fall on every other index from the anchor's, the source frame last pushed; where
+        # that is not the word ends' parity, the anchor is held once more.
+        self._rate_pending = False
+        half_rate = len(grid) == 2 and self.resampler.snapped and self._end_parity() is not None
+        self.lead = int(half_rate)
+        if not (half_rate and self._off_parity()):
             return []
-        self.lead, self.held_first = 1, shift
+        if self.cutter.frames_seen == 1:  # the stream's start
+            self.held_first = 1
+            # Not the foot lock's: a frame standing still would read as a contact there, and a
+            # foot in the air at the start would set a floor the lock then drops (a popped knee).
+            return self._hold_anchor(feet=False)
+        return self._hold_anchor()
+
+    def _hold_anchor(self, feet: bool = True) -> list[tuple[int, np.ndarray]]:
+        # The anchor held once more to set a half-rate stream's frames on the word ends. After
+        # a restart it is shown, and the foot lock sees it as shown (the output holds through
+        # a pause anyway); counted in ``held_realigned``.
+        if feet:
+            self.held_realigned += 1
         _, arrival, root, rotations = self._inputs[-1]
-        # Not the foot lock's: a frame standing still would read as a contact there, and a
-        # foot in the air at the start would set a floor the lock then drops (a popped knee).
-        return self.push(PoseFrame(self.performer, arrival, root, rotations), held=True, feet=False) if shift else []
+        return self.push(PoseFrame(self.performer, arrival, root, rotations), held=True, feet=feet)
 
     @property
     def stream_frames(self) -> int:
-        """Frames of the stream that came from the source: ``frames_in``, and the held copy
-        of the first frame a half-rate source may start with."""
-        return self.frames_in + self.held_first
+        """Frames of the stream that came from the source: ``frames_in``, and the held copies
+        that set a half-rate source's frames on the word ends (``held_first``, ``held_realigned``)."""
+        return self.frames_in + self.held_first + self.held_realigned
 
     def _on_daemon_clock(self, frame: PoseFrame, now: float, restarts: int) -> PoseFrame:
         # Source time -> daemon time by a fixed offset taken when the stream (re)starts:

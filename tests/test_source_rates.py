@@ -325,3 +325,45 @@ def test_a_30_hz_sender_that_turns_irregular_loses_the_lead_and_no_word_comes_la
     assert new == list(range(1, len(new) + 1)) and s.blender.late_frames == 0 and s.skipped == 0
     assert s.held == len(indices) - len(new) == (0 if followed else 1)
     assert s.stream_frames - 1 == new[-1]  # every frame shown, to the last
+
+
+@pytest.mark.parametrize("jump", [-100.0, 0.4])
+def test_a_30_hz_sender_whose_clock_restarts_keeps_the_lead(jump):
+    """A restart of the sender's time base (its clock restarted, or its stamps jump on past
+    ``max_gap``) re-anchors the grid at one frame where the stream brought two. The lead
+    was dropped there and never learnt again: every later frame left a period later (run
+    on the code before: lead 0 from the restart on, p50 6 periods, 2 held frames). Now the
+    anchor is held once more (a one-frame freeze) to keep the word ends' parity, and the
+    rate is learnt again on the next frame: no tick held or frame skipped, every frame but
+    that anchor left ``delay`` periods after its own time, none late, the last one shown."""
+    from stylecast.daemon.restylers import StandInRestyler
+    from stylecast.drivers.bvh.bvh_replay import ReplaySource
+    from stylecast.motion.clip import PoseFrame
+
+    class Restarting(ReplaySource):
+        def poll(self, now):
+            return [PoseFrame(f.performer, f.timestamp + (jump if round(f.timestamp * 30) >= 40 else 0.0),
+                              f.root_position, f.rotations) for f in super().poll(now)]
+
+    shown = []
+    source = Restarting(performer_walk(), "p0")
+    daemon = Daemon(DaemonConfig(hop=4, delay=5, control="off"), [source], StandInRestyler(), FakeClock(),
+                    frame_taps=[lambda f: shown.append((f.index, daemon.clock.now() - f.arrival))],
+                    log_status=False)
+    leads = []
+    try:
+        daemon.start()
+        while not daemon.finished:
+            daemon.step()
+            leads.append(daemon.sessions[0].lead)
+            daemon.clock.advance(1 / OUTPUT_FPS)
+    finally:
+        daemon.close()
+    s = daemon.sessions[0]
+    assert s.resampler.restarts == 1 and min(leads[5:]) == 1 and s.held_realigned == 1
+    anchor = s.held_first + 2 * 39 + 1  # source frame 40's index: the one after frame 39's
+    periods = {index: round(seconds * OUTPUT_FPS, 6) for index, seconds in shown}
+    assert periods.pop(anchor) == 4 and set(periods.values()) == {5}
+    new = sorted({index for index, _ in shown})
+    assert [index for index, _ in shown] == new == list(range(1, s.stream_frames))  # one a tick, to the last
+    assert s.held == s.skipped == s.blender.late_frames == 0
