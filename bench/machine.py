@@ -27,12 +27,17 @@ def code_measured() -> str:
     except ImportError:
         return "code: stylecast not importable"
     where = Path(stylecast.models.__file__).resolve().parents[1]
-    try:
-        commit = subprocess.run(["git", "-C", str(where), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True, timeout=5).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        commit = ""
-    return f"code {where}" + (f" at {commit}" if commit else "")
+    def git(*args: str) -> str:
+        try:
+            return subprocess.run(["git", "-C", str(where), *args], capture_output=True, text=True,
+                                  timeout=5).stdout.strip()
+        except (OSError, subprocess.SubprocessError):
+            return ""
+
+    commit = git("rev-parse", "--short", "HEAD")
+    # A run before committing measures the working tree, not the commit: say so.
+    changed = commit and git("status", "--porcelain", "--untracked-files=no")
+    return f"code {where}" + (f" at {commit}" if commit else "") + (" with uncommitted changes" if changed else "")
 
 
 def describe(*extra: str) -> str:
