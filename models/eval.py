@@ -56,7 +56,8 @@ import numpy as np
 from stylecast.motion.errors import UserError
 from stylecast.motion.footlock import AUTO_FEET, FEET, ContactSettings, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES
-from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, start_of
+from stylecast.motion.smoothing import CORRECTION_TAU
+from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, correction_tau_of, start_of
 
 from . import data as D
 from .data import bandai_skeleton
@@ -95,6 +96,7 @@ class Variant:
     smooth: bool = True  # ...and low-passes the correction; one row shows what that does
     contacts: ContactSettings = FEET["input"]  # ...with a foot lock (the model's own) and the pelvis height
     start_restyled: bool = True  # ...and a stream's first frame restyled or faded in (the model's own)
+    correction_tau: float = CORRECTION_TAU  # ...and the correction's low-pass (the model's own)
 
 
 # --- the paper's smoothness and the seams ----------------------------------------------------
@@ -156,7 +158,8 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
         r = _optional_model(name, log)  # shipped pair models, beside a pair model of the same styles
         if r is not None and r.styles == proposed.styles and r.path != proposed.path:
             out.append(Variant(name, r.for_target(proposed.target_style).restyle_words, note,
-                               contacts=feet_for(AUTO_FEET, r), start_restyled=start_of(r)))
+                               contacts=feet_for(AUTO_FEET, r), start_restyled=start_of(r),
+                               correction_tau=correction_tau_of(r)))
     for name, path in extra.items():
         try:
             other = Restyler.load(path).for_target(proposed.target_style)
@@ -169,27 +172,29 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
         other = other.with_performer_style(source)
         out.append(Variant(name, other.restyle_words, f"`{path}` ({other.name}, {other.source_style} -> "
                                                       f"{other.target_style})", contacts=feet_for(AUTO_FEET, other),
-                           start_restyled=start_of(other)))
+                           start_restyled=start_of(other), correction_tau=correction_tau_of(other)))
     start = start_of(proposed)  # a stream's first frame as the model under test ships it
+    tau = correction_tau_of(proposed)  # ...and its correction's low-pass
     out.append(Variant("proposed-unlocked", proposed.restyle_words, "the model under test without the foot lock",
-                       lock_feet=False, start_restyled=start))
+                       lock_feet=False, start_restyled=start, correction_tau=tau))
     own = feet_for(AUTO_FEET, proposed)  # the foot lock it ships with (``--feet auto``)
     out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
                        "the model under test without the correction low-pass", smooth=False, contacts=own,
-                       start_restyled=start))
+                       start_restyled=start, correction_tau=tau))
     out.append(Variant("proposed-fixed-pelvis", proposed.restyle_words,
                        "the model under test with the root's height passed through (no pelvis height)",
-                       contacts=replace(own, pelvis_tau=0), start_restyled=start))
+                       contacts=replace(own, pelvis_tau=0), start_restyled=start, correction_tau=tau))
     out.append(Variant("proposed-input-pace", proposed.restyle_words,
                        "the model under test at the input's pace (`--pace input`: the root's horizontal path passes "
-                       "through)", contacts=feet_for(AUTO_FEET, proposed, "input"), start_restyled=start))
+                       "through)", contacts=feet_for(AUTO_FEET, proposed, "input"), start_restyled=start,
+                       correction_tau=tau))
     other = next(name for name in FEET if name != proposed.feet)
     out.append(Variant(f"proposed-feet-{other}", proposed.restyle_words,
                        f"the model under test with `--feet {other}` instead of its own",
-                       contacts=feet_for(other, proposed), start_restyled=start))
+                       contacts=feet_for(other, proposed), start_restyled=start, correction_tau=tau))
     out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test, "
                                                            f"`--feet {proposed.feet}`, `--pace style`)", contacts=own,
-                       start_restyled=start))
+                       start_restyled=start, correction_tau=tau))
     return out
 
 
@@ -421,7 +426,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                 else:
                     lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
                     res, moved = restyle_rotations(inp, variant.restyle_words, hop, live=live,
-                                                   correction_tau=None if variant.smooth else 0.0,
+                                                   correction_tau=variant.correction_tau if variant.smooth else 0.0,
                                                    start_restyled=variant.start_restyled,
                                                    contacts=variant.contacts, held_first=held_first, **lock)
                     out_roots = roots if moved is None else moved  # the pelvis height the lock set

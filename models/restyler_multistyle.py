@@ -20,6 +20,7 @@ import copy
 import numpy as np
 
 from stylecast.motion.errors import UserError
+from stylecast.motion.smoothing import CORRECTION_TAU
 
 from .restyler import Restyler, _identity_words, build_checked, network_config, register_kind
 from .styles import NEUTRAL, STYLES, check_style, describe_mix, one_hot, parse_mix
@@ -42,6 +43,7 @@ class MultiStyleRestyler(Restyler):
     # held-out takes (the worst clip's largest one-frame jerk up to 74x the input's, against
     # 1.7-3.9x faded in; the model card, "A stream's first frame, restyled").
     start_restyled = False
+    correction_tau = CORRECTION_TAU  # the pair model's shorter one put active's jerk over its goal
 
     def __init__(self, model, rep, metadata: dict, weights=None, path=None, intensity: float = 1.0):
         from .networks import batch_invariant

@@ -188,6 +188,12 @@ def start_of(restyler) -> bool:
     return bool(getattr(restyler, "start_restyled", True))
 
 
+def correction_tau_of(restyler) -> float:
+    """``BlendSettings.correction_tau`` for a stream restyled by ``restyler``: the model's own
+    ``correction_tau`` where it names one, else ``CORRECTION_TAU``."""
+    return float(getattr(restyler, "correction_tau", CORRECTION_TAU))
+
+
 def _spring_at(offset: np.ndarray, c2: np.ndarray, omega, k) -> np.ndarray:
     """A critically damped spring pulling ``offset`` to zero, k frames on, in closed form:
     x(k) = (x0 + c2 k) e^(-w k) with c2 = v0 + w x0."""

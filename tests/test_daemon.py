@@ -17,7 +17,7 @@ from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip
 from stylecast.motion.footlock import AUTO_FEET, FEET, LEG_INDEX, FootLock, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
-from stylecast.motion.words import BlendSettings, restyle_stream, start_of
+from stylecast.motion.words import BlendSettings, correction_tau_of, restyle_stream, start_of
 
 J = len(HUMANOID_BONES)
 CHECKPOINT = Path(__file__).resolve().parents[1] / "models" / "checkpoints" / "normal2exhausted.safetensors"
@@ -61,13 +61,15 @@ def run_daemon(clip: Clip, restyler, hop: int = 15, performers: int = 1, tap=Non
 def offline(clip: Clip, restyler, hop: int, contacts=None, intensity: float = 1.0, held_first: int = 0):
     """What `stylecast restyle --live --hop HOP` computes for this humanoid motion:
     rotations and roots (the foot lock sets the pelvis height; ``contacts``: its settings,
-    by default the model's own, as ``--feet auto``)."""
+    by default the model's own, as ``--feet auto``; the model's own start and correction
+    low-pass, as `restyle` takes them)."""
     from stylecast.models.restyle import restyle_rotations
 
     return restyle_rotations(clip.rotations, restyler.restyle_words, hop, intensity, crossfade_frames=30, live=True,
                              roots=clip.root_positions, skeleton=clip.skeleton,
                              contacts=feet_for(AUTO_FEET, restyler) if contacts is None else contacts,
-                             start_restyled=start_of(restyler), held_first=held_first)
+                             start_restyled=start_of(restyler), correction_tau=correction_tau_of(restyler),
+                             held_first=held_first)
 
 
 def test_restyle_live_is_the_shared_stream_code():
