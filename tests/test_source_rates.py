@@ -284,27 +284,23 @@ def test_a_sender_at_another_rate_is_interpolated_at_the_grid_times(rate):
                        atol=1e-6)
 
 
-@pytest.mark.parametrize("shift", [0.003, 0.008])
-def test_a_30_hz_sender_that_turns_irregular_loses_the_lead_and_no_word_comes_late(shift):
-    """The lead rests on every source frame landing on the grid at the word ends' parity.
-    A sender whose frames jump a quarter of its period off it (8 ms, from frame 20 on) is
-    shown a period behind each pair from then on: no frame late, none skipped, one held
-    where the lead drops. A jump of 3 ms is within ``StreamResampler.SNAP``: the grid
-    follows it and the lead stays."""
+def replay_30_hz_with_stamps_moved(offset):
+    """The performer's 30 fps walk replayed through a daemon at hop 4 / delay 5 under the
+    fake clock, each source frame's stamp moved by ``offset(its index)`` seconds. Returns the
+    daemon, the session's lead at each tick and each output frame with the clock's time."""
     from stylecast.daemon.restylers import StandInRestyler
     from stylecast.drivers.bvh.bvh_replay import ReplaySource
     from stylecast.motion.clip import PoseFrame
 
-    class Wandering(ReplaySource):
+    class Moved(ReplaySource):
         def poll(self, now):
-            return [PoseFrame(f.performer, f.timestamp + (shift if round(f.timestamp * 30) >= 20 else 0.0),
-                              f.root_position, f.rotations) for f in super().poll(now)]
+            return [PoseFrame(f.performer, f.timestamp + offset(round(f.timestamp * 30)), f.root_position,
+                              f.rotations) for f in super().poll(now)]
 
-    frames = []
-    source = Wandering(performer_walk(), "p0")
-    daemon = Daemon(DaemonConfig(hop=4, delay=5, control="off"), [source], StandInRestyler(), FakeClock(),
-                    frame_taps=[frames.append], log_status=False)
-    leads = []
+    shown, leads = [], []
+    daemon = Daemon(DaemonConfig(hop=4, delay=5, control="off"), [Moved(performer_walk(), "p0")], StandInRestyler(),
+                    FakeClock(), frame_taps=[lambda frame: shown.append((frame, daemon.clock.now()))],
+                    log_status=False)
     try:
         daemon.start()
         while not daemon.finished:
@@ -313,6 +309,18 @@ def test_a_30_hz_sender_that_turns_irregular_loses_the_lead_and_no_word_comes_la
             daemon.clock.advance(1 / OUTPUT_FPS)
     finally:
         daemon.close()
+    return daemon, leads, shown
+
+
+@pytest.mark.parametrize("shift", [0.003, 0.008])
+def test_a_30_hz_sender_that_turns_irregular_loses_the_lead_and_no_word_comes_late(shift):
+    """The lead rests on every source frame landing on the grid at the word ends' parity.
+    A sender whose frames jump a quarter of its period off it (8 ms, from frame 20 on) is
+    shown a period behind each pair from then on: no frame late, none skipped, one held
+    where the lead drops. A jump of 3 ms is within ``StreamResampler.SNAP``: the grid
+    follows it and the lead stays."""
+    daemon, leads, shown = replay_30_hz_with_stamps_moved(lambda i: shift if i >= 20 else 0.0)
+    frames = [frame for frame, _ in shown]
     s = daemon.sessions[0]
     followed = shift <= StreamResampler.SNAP / OUTPUT_FPS
     assert leads[5] == 1 and s.held_first == 1
@@ -336,29 +344,8 @@ def test_a_30_hz_sender_whose_clock_restarts_keeps_the_lead(jump):
     anchor is held once more (a one-frame freeze) to keep the word ends' parity, and the
     rate is learnt again on the next frame: no tick held or frame skipped, every frame but
     that anchor left ``delay`` periods after its own time, none late, the last one shown."""
-    from stylecast.daemon.restylers import StandInRestyler
-    from stylecast.drivers.bvh.bvh_replay import ReplaySource
-    from stylecast.motion.clip import PoseFrame
-
-    class Restarting(ReplaySource):
-        def poll(self, now):
-            return [PoseFrame(f.performer, f.timestamp + (jump if round(f.timestamp * 30) >= 40 else 0.0),
-                              f.root_position, f.rotations) for f in super().poll(now)]
-
-    shown = []
-    source = Restarting(performer_walk(), "p0")
-    daemon = Daemon(DaemonConfig(hop=4, delay=5, control="off"), [source], StandInRestyler(), FakeClock(),
-                    frame_taps=[lambda f: shown.append((f.index, daemon.clock.now() - f.arrival))],
-                    log_status=False)
-    leads = []
-    try:
-        daemon.start()
-        while not daemon.finished:
-            daemon.step()
-            leads.append(daemon.sessions[0].lead)
-            daemon.clock.advance(1 / OUTPUT_FPS)
-    finally:
-        daemon.close()
+    daemon, leads, frames = replay_30_hz_with_stamps_moved(lambda i: jump if i >= 40 else 0.0)
+    shown = [(frame.index, now - frame.arrival) for frame, now in frames]
     s = daemon.sessions[0]
     assert s.resampler.restarts == 1 and min(leads[5:]) == 1 and s.held_realigned == 1
     anchor = s.held_first + 2 * 39 + 1  # source frame 40's index: the one after frame 39's
