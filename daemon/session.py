@@ -238,21 +238,21 @@ class Session:
         self.lead = int(half_rate)
         if not (half_rate and self._off_parity()):
             return []
-        if self.cutter.frames_seen == 1:  # the stream's start
-            self.held_first = 1
-            # Not the foot lock's: a frame standing still would read as a contact there, and a
-            # foot in the air at the start would set a floor the lock then drops (a popped knee).
-            return self._hold_anchor(feet=False)
-        return self._hold_anchor()
+        return self._hold_anchor(start=self.cutter.frames_seen == 1)
 
-    def _hold_anchor(self, feet: bool = True) -> list[tuple[int, np.ndarray]]:
-        # The anchor held once more to set a half-rate stream's frames on the word ends. After
-        # a restart it is shown, and the foot lock sees it as shown (the output holds through
-        # a pause anyway); counted in ``held_realigned``.
-        if feet:
+    def _hold_anchor(self, start: bool = False) -> list[tuple[int, np.ndarray]]:
+        # The anchor held once more, to set a half-rate stream's frames on the word ends.
+        if start:
+            # The stream's first frame (``held_first``): never shown, and not the foot lock's: a
+            # frame standing still would read as a contact there, and a foot in the air at the
+            # start would set a floor the lock then drops (a popped knee).
+            self.held_first = 1
+        else:
+            # After a restart (``held_realigned``): shown, and the foot lock sees it as shown
+            # (the output holds through a pause anyway).
             self.held_realigned += 1
         _, arrival, root, rotations = self._inputs[-1]
-        return self.push(PoseFrame(self.performer, arrival, root, rotations), held=True, feet=feet)
+        return self.push(PoseFrame(self.performer, arrival, root, rotations), held=True, feet=not start)
 
     @property
     def stream_frames(self) -> int:
