@@ -203,6 +203,35 @@ def test_daemon_output_equals_offline_restyle_with_the_shipped_model():
     assert rot.angle_between(live, offline(clip, restyler, 15).rotations).max() < 1e-4
 
 
+
+@pytest.mark.parametrize("model", ["normal2exhausted", "multistyle"])
+def test_restyle_streams_with_the_models_own_start_and_low_pass_as_serve_does(model, monkeypatch):
+    """`stylecast restyle` (``restyle_clip``) and `serve` take a stream's start and its
+    correction's low-pass from the model (``words.start_of``, ``correction_tau_of``): the
+    pair model's 1.5 frames, the multi-style model's 2. A path that took the default
+    instead would part from the other by the filter's lag (this test: restyle_clip without
+    the model's time constant failed it; the daemon test above compares the frames)."""
+    from stylecast.daemon.clips import bundled_clip
+    from stylecast.models import restyle as R
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.bvh import read_bvh
+
+    restyler = Restyler.load(model)
+    seen = {}
+    real = R.restyle_rotations
+
+    def recorded(*args, **kwargs):
+        seen.update(kwargs)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(R, "restyle_rotations", recorded)
+    R.restyle_clip(read_bvh(bundled_clip()).slice(0, 40), restyler, live=True)
+    daemon = Daemon(DaemonConfig(control="off"), [ReplaySource(walk_clip(10), "p0")], restyler, FakeClock(),
+                    log_status=False)
+    daemon.close()
+    assert seen["correction_tau"] == daemon.settings.correction_tau == {"normal2exhausted": 1.5, "multistyle": 2.0}[model]
+    assert seen["start_restyled"] == daemon.settings.start_restyled
+
 @pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")
 def test_serve_covers_ground_at_the_styles_pace_unless_told_to_keep_the_performers():
     """``--pace style`` (the default) slows a normal walk made exhausted to the exhausted
