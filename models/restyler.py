@@ -40,7 +40,7 @@ class Restyler:
     # (the model card, "A stream's first frame, restyled").
     start_restyled = True
     # The correction's low-pass (``words.BlendSettings.correction_tau``, frames). A triple
-    # pole lags the correction by 3 tau / (e^(1/tau) - 1) frames at rest: 4.6 at 2, 3.2 at
+    # pole lags the correction by 3 / (e^(1/tau) - 1) frames at rest: 4.6 at 2, 3.2 at
     # 1.5, and a correction late against its motion reads less as the style. Held-out clips,
     # the default at hop 4: 2 -> 1.5 took the worst judge 89.2 -> 92.9 % exhausted (turning
     # walks most), jerk 1.008 -> 1.014, pops 1.21 -> 1.30, holds 1.49 -> 1.54 (the model card,
