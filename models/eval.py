@@ -93,10 +93,10 @@ class Variant:
     restyle_words: object  # (B, 60, J, 4) -> (B, 60, J, 4), or None for the input itself
     note: str
     lock_feet: bool = True  # the product always locks; one row shows what the lock does
-    smooth: bool = True  # ...and low-passes the correction; one row shows what that does
     contacts: ContactSettings = FEET["input"]  # ...with a foot lock (the model's own) and the pelvis height
     start_restyled: bool = True  # ...and a stream's first frame restyled or faded in (the model's own)
-    correction_tau: float = CORRECTION_TAU  # ...and the correction's low-pass (the model's own)
+    # ...and low-passes the correction (the model's own time constant; one row shows 0, no low-pass)
+    correction_tau: float = CORRECTION_TAU
 
 
 # --- the paper's smoothness and the seams ----------------------------------------------------
@@ -179,8 +179,8 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
                        lock_feet=False, start_restyled=start, correction_tau=tau))
     own = feet_for(AUTO_FEET, proposed)  # the foot lock it ships with (``--feet auto``)
     out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
-                       "the model under test without the correction low-pass", smooth=False, contacts=own,
-                       start_restyled=start, correction_tau=tau))
+                       "the model under test without the correction low-pass", contacts=own,
+                       start_restyled=start, correction_tau=0.0))
     out.append(Variant("proposed-fixed-pelvis", proposed.restyle_words,
                        "the model under test with the root's height passed through (no pelvis height)",
                        contacts=replace(own, pelvis_tau=0), start_restyled=start, correction_tau=tau))
@@ -426,7 +426,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                 else:
                     lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
                     res, moved = restyle_rotations(inp, variant.restyle_words, hop, live=live,
-                                                   correction_tau=variant.correction_tau if variant.smooth else 0.0,
+                                                   correction_tau=variant.correction_tau,
                                                    start_restyled=variant.start_restyled,
                                                    contacts=variant.contacts, held_first=held_first, **lock)
                     out_roots = roots if moved is None else moved  # the pelvis height the lock set
