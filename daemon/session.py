@@ -362,8 +362,9 @@ class Session:
         """``render`` up to the seam blender: a new frame is returned pending (for
         ``settle_frames``), anything else as ``render`` returns it."""
         newest = self.cutter.frames_seen - 1
-        # The lead shortens the foot lock's look-ahead by a frame: only where its ramp fits.
-        lead = self.lead if self.feet.ramp < self.settings.delay else 0
+        # The lead shortens the foot lock's look-ahead by a frame: only where its sight (at
+        # most its ramp) is short of the delay, so the lock reads what it did without it.
+        lead = self.lead if self.feet.sight < self.settings.delay else 0
         target = newest - self.settings.delay + lead
         if drain:
             target = min(target, self.stream_frames - 1)

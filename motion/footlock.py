@@ -16,9 +16,11 @@ where their floor is).
 
 Lock (``FootLock.apply``, per output frame t): the leg weight w(t) rises to 1 over
 ``ramp`` frames before a contact and falls over ``release`` frames after it (a dilation of
-the contacts by a smoothstepped triangle each side, which looks ``ramp`` frames ahead: the
-daemon has ``delay`` frames of input beyond the frame it renders, so ``ramp`` <= delay; the
-release looks only back, so it may be longer: the stance's is 8). Where w > 0 the
+the contacts by a smoothstepped triangle each side, which looks ``ramp`` frames ahead; the
+release looks only back, so it may be longer: the stance's is 8). The daemon has ``delay``
+frames of input beyond the frame it renders: a lock reads no further (its ``sight``), and
+where that is short of the ramp (``--latency low``: one frame) the lock sets in as the
+foot comes down to the floor (``approach``), before its contact is seen. Where w > 0 the
 hip-knee-ankle chain is solved analytically: the ankle goes to the input's ankle (or, with
 the stance kept, beside it) and the knee bends the way the restyled knee points off its own
 hip-ankle line (a knee is a hinge that folds forward of its thigh, which decides where a
@@ -141,6 +143,15 @@ MAX_PACE_RATIO = 1.0
 # cm a frame beyond which the input's root did not walk but jumped (30 m/s, three times a
 # sprint): a looped clip starting over, a tracker losing its origin; the pace's lag is reset
 TELEPORT_STEP = 50.0
+# A foot's coming down to a contact (``approach``), for a lock that sees fewer frames ahead
+# than its ramp: cm a frame from which a foot is not coming down (before the contact test
+# plants it at 0.6, a walk's foot slows through 1.2-2.0 over its last six frames, a run's
+# from 6-8 to under 3 in its last two; a swing moves 3-6), the most its lock weight moves a
+# frame, and the frames read before the newest. Chosen on the training split (``approach``):
+# 2.5, 3.5 and 6 cm/frame, 0.1-0.3 a frame over 4-10 frames were screened.
+APPROACH_SPEED = 4.5
+APPROACH_SLEW = 0.2
+APPROACH_FRAMES = 5
 # cm a free foot's ``Pace`` carry must reach before its leg is fully moved by it
 # (``_carry_free_feet``), for the same reason
 CARRY_EASE = 0.5
@@ -157,8 +168,8 @@ class ContactSettings:
     release_speed: float = 1.5  # ...or faster than this
     floor_window: int = 240  # frames (4 s) over which the floor is the lowest ball height
     # Frames over which a lock blends in before and out after a contact. It looks this far
-    # ahead, so it must not exceed the stream's delay: 4 fits serve's default (hop 4,
-    # delay 5) and restyle's (delay = hop = 4) alike, so both lock the same frames.
+    # ahead: 4 fits serve's default (hop 4, delay 5) and restyle's (delay = hop = 4) alike,
+    # so both lock the same frames; a stream of less delay foresees the rest (``approach``).
     ramp: int = 4
     # Frames over which a lock lets go after a contact (None: the lock's ramp). This side
     # needs no look-ahead, only the contacts already pushed, so it may be longer.
@@ -722,17 +733,21 @@ class FootLock:
     module docstring). ``push`` every input frame (index t = 0, 1, ... in order), then
     ``apply`` output frames up to ``ramp`` frames behind the newest pushed input."""
 
-    def __init__(self, skeleton: Skeleton, ramp: int | None = None, settings: ContactSettings = ContactSettings()):
+    def __init__(self, skeleton: Skeleton, ramp: int | None = None, settings: ContactSettings = ContactSettings(),
+                 sight: int | None = None):
         if tuple(skeleton.names) != HUMANOID_BONES:
             raise ValueError("the foot lock works on the canonical humanoid skeleton")
         self.settings = settings
-        self.set_offsets(skeleton.offsets)
         self.ramp = settings.ramp if ramp is None else max(0, int(ramp))
+        # Input frames beyond an output frame the lock may read (the stream's delay); the
+        # contacts of the ramp's frames further ahead are foreseen (``foresee_contacts``).
+        self.sight = self.ramp if sight is None else min(max(0, int(sight)), self.ramp)
         self.release = self.ramp if settings.release is None else max(0, int(settings.release))
         # The contacts a frame's weight reads: ``back`` frames before it (the release's, at
         # least the ramp's, which the pelvis reads: ``_down``) and ``ramp`` after it.
         self.back = max(self.release, self.ramp)
         self._blend = lock_kernel(self.ramp, self.release, self.back)
+        self.set_offsets(skeleton.offsets)
         self.pelvis = PelvisHeight(settings.pelvis_tau, settings.pelvis_cap, settings.pelvis_flight_tau,
                                    settings.flight_memory)
         self.stance = StanceOffset(settings)
@@ -751,14 +766,15 @@ class FootLock:
     @classmethod
     def for_stream(cls, skeleton: Skeleton, delay: int, settings: ContactSettings = ContactSettings(),
                    fade_in: int = 0, fade_tau: float = 0.0, lead_in: int = 0, aim: float = 1.0) -> "FootLock":
-        """The lock a stream with ``delay`` frames of look-ahead can run: its ramp looks
-        ahead at most ``delay`` frames (the daemon and ``restyle`` both build it here).
+        """The lock a stream with ``delay`` frames of look-ahead can run: it reads at most
+        ``delay`` input frames ahead (its ``sight``), and foresees the contacts of the
+        ramp's frames beyond them (the daemon and ``restyle`` both build it here).
         ``fade_in``: the frames by which the stream's first fade from pass-through to the
         restyle has ended (``words.BlendSettings.first_fade_end``), its correction low-passed
         over ``fade_tau`` frames, towards the share ``aim`` (the intensity): the stance is
         taken at that share through it. ``lead_in``: frames before the shown ones (an offline
         clip's mirrored lead-in), over which the stance follows freely (see ``StanceOffset``)."""
-        lock = cls(skeleton, ramp=min(settings.ramp, delay), settings=settings)
+        lock = cls(skeleton, settings=settings, sight=delay)
         lock.stance.for_fade(fade_in, fade_tau)
         lock.stance.free_until, lock.stance.aim = int(lead_in), float(aim)
         return lock
@@ -770,6 +786,9 @@ class FootLock:
         # How far the ankle sits above the ball when the foot stands flat: the foot bone's
         # vertical extent in the T-pose (feet point forward and down).
         self._ankle_rest = float(np.mean([-self.offsets[toes][1] for _, _, _, toes in LEGS]))
+        s = self.settings  # ...and what ``approach_columns`` reads of this lock
+        self._approach_numbers = np.array([[self._ankle_rest, s.plant_height, s.plant_speed, s.release_height,
+                                            self._blend[min(self.back + self.sight + 1, len(self._blend) - 1)]]])
 
     # -- input side ---------------------------------------------------------------------
     def push(self, roots: np.ndarray, rotations: np.ndarray) -> np.ndarray:
@@ -843,14 +862,35 @@ class FootLock:
 
     # -- output side --------------------------------------------------------------------
     def weights(self, t0: int, n: int) -> np.ndarray:
-        """Lock weights (n, 2) of output frames t0 .. t0+n-1 (needs inputs to t0+n-1+ramp)."""
+        """Lock weights (n, 2) of output frames t0 .. t0+n-1 (needs inputs to t0+n-1+sight)."""
         return self._weights_and_down(t0, n)[0]
 
     def _weights_and_down(self, t0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The lock weights (n, 2) and which feet are down for the pelvis (n, 2)."""
         c = self._contact_window(t0, n, np.zeros((n + self.back + self.ramp, 2)))
         windows = sliding_window_view(c, self.back + self.ramp + 1, axis=0)  # (n, 2, kernel)
-        return _lock_weights(windows, self._blend, self.back), _down(windows, self.ramp)
+        if self.sight == self.ramp:
+            return _lock_weights(windows, self._blend, self.back), _down(windows, self.ramp)
+        windows = windows.copy()
+        windows[..., self.back + self.sight + 1:] = 0.0  # beyond sight: not pushed yet, live
+        down = _down(windows, self.ramp)
+        windows[..., self.back + self.sight + 1] = approach_columns(*self._approach_inputs(t0 + self.sight + np.arange(n)))
+        return _lock_weights(windows, self._blend, self.back), down
+
+    def _approach_inputs(self, newest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What ``approach_columns`` reads for the output frames whose newest input frames are
+        ``newest`` (n,): history rows (n, frames, columns), whether each frame has a step
+        before it (n, frames - 1; none where the newest is not pushed) and the lock's numbers
+        (n, 5). (The frames a lock forgets are older than its ``back``, which these never
+        reach: only a stream's start lies before them.)"""
+        i = np.asarray(newest) - self._base
+        if len(i) == 1 and APPROACH_FRAMES <= i[0] < len(self._history):  # the daemon's tick: a slice
+            return (self._history.rows[None, i[0] - APPROACH_FRAMES:i[0] + 1], _ALL_MOVED,
+                    self._approach_numbers)
+        frames = i[:, None] + np.arange(-APPROACH_FRAMES, 1)  # from the oldest
+        rows = self._history.rows[np.clip(frames, 0, len(self._history) - 1)]
+        moved = (frames[:, :-1] >= 0) & (i < len(self._history))[:, None]
+        return rows, moved, np.repeat(self._approach_numbers, len(i), axis=0)
 
     def _contact_window(self, t0: int, n: int, out: np.ndarray) -> np.ndarray:
         """The contacts of frames t0 - back .. t0 + n - 1 + ramp written into ``out`` (n +
@@ -945,6 +985,8 @@ def push_frames(rows: list) -> None:
             if lock.frames == 2:
                 lock._first_frame_takes(planted)
 
+
+_ALL_MOVED = np.ones((1, APPROACH_FRAMES), dtype=bool)  # ``FootLock._approach_inputs``' common case
 
 # The columns of a lock's per-frame history (``FootLock._history``).
 _CONTACTS, _FLOOR, _FEET = slice(0, 2), 2, slice(3, 15)  # _FEET: (ankle, ball) x (left, right) x xyz
@@ -1049,6 +1091,58 @@ def _lock_weights(windows: np.ndarray, kernel: np.ndarray, back: int) -> np.ndar
     return 1.0 - (1.0 - before) * (1.0 - after)
 
 
+def approach_columns(rows: np.ndarray, moved: np.ndarray, numbers: np.ndarray) -> np.ndarray:
+    """``FootLock._approach_inputs`` of one or many locks (m rows) -> the contact windows'
+    value (m, 2) for the frame just beyond each lock's sight: ``approach`` as the weight the
+    lock kernel there gives it."""
+    ankle_rest, plant_height, plant_speed, release_height = (n[:, None, None] for n in numbers[:, :4].T)
+    near = approach(rows, moved, ankle_rest, plant_height, plant_speed, release_height)
+    column = numbers[:, 4:]
+    return np.minimum(near, column) / column
+
+
+def approach(rows: np.ndarray, moved: np.ndarray, ankle_rest, plant_height, plant_speed,
+             release_height) -> np.ndarray:
+    """A lock's history rows of APPROACH_FRAMES + 1 consecutive input frames (m, frames,
+    columns) -> how far each foot of the last has come down to a contact (m, 2), in [0, 1]:
+    per frame, 1 where the foot is as low and slow as the contact test plants it, 0 from
+    ``release_height`` up or ``APPROACH_SPEED`` on, smoothstepped between, and 0 where no
+    floor is known yet; then slew-limited to ``APPROACH_SLEW`` a frame over the frames read,
+    from a stream's first step on (``moved`` (m, frames - 1): the frame has a step before
+    it; nothing was shown before a stream started, so a foot coming down in its first
+    frames is not held back).
+
+    Why: a lock sets in over ``ramp`` frames before a contact, and a stream with less delay
+    than that (``--latency low``: one frame) saw the contact too late and snapped the lock
+    in over a frame. A foot coming down slows on its way, so the lock sets in as it does
+    (``FootLock.sight``). Measured on the training split's normal clips with the pair
+    default at hop 1 (a scratch screen; the held-out figures are in the model card): jerk
+    1.19x the input's -> 1.08x, planted-foot slide 1.59x -> 1.10x, the worst clip's largest
+    one-frame jerk 3.6x -> 2.6x (the real contacts four frames ahead: 1.03x, 1.10x, 2.1x).
+    Unlimited, a walk's speed, stepped as a 30 Hz capture's is, switched the lock in by 0.65
+    in one frame (6.0x the input's largest one-frame jerk); limited from the frames after a
+    floor became known alone, a live walk's first frames popped a foot at 7.3x; and a foot
+    lifting slowly off the floor let go at once. A wrong guess costs little: the lock's
+    target is the input's own foot."""
+    feet = rows[:, :, _FEET].reshape(*rows.shape[:2], 2, 2, 3)  # (m, frame, ankle/ball, foot, xyz)
+    floor = rows[:, 1:, _FLOOR][..., None]
+    height = np.minimum(feet[:, 1:, 1, :, 1] - floor, feet[:, 1:, 0, :, 1] - floor - ankle_rest)  # (m, frame, foot)
+    speed = np.linalg.norm(np.diff(feet, axis=1), axis=-1).min(axis=2)  # (m, frame, foot)
+    slow = np.clip((APPROACH_SPEED - speed) / (APPROACH_SPEED - plant_speed), 0.0, 1.0)
+    low = np.clip((release_height - height) / (release_height - plant_height), 0.0, 1.0)
+    near = np.where(moved[..., None], _smoothstep(slow) * _smoothstep(low), np.nan)  # (m, frame, foot)
+    # Slew-limited over the frames read, from the first with a step (NaN: none yet)
+    slewed = near[:, 0]
+    for frame in near.transpose(1, 0, 2)[1:]:
+        slewed = np.where(np.isnan(slewed), frame,
+                          np.clip(frame, slewed - APPROACH_SLEW, slewed + APPROACH_SLEW))
+    return np.nan_to_num(slewed, nan=0.0)
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    return x * x * (3.0 - 2.0 * x)
+
+
 def _down(windows: np.ndarray, ramp: int) -> np.ndarray:
     """Contact windows (..., back + ramp + 1) -> whether a contact lies within ``ramp``
     frames either side: the feet the pelvis stands on (``PelvisHeight``). A foot that a
@@ -1077,14 +1171,21 @@ def plan_locks(items: list) -> list["LockJob"]:
     windows = np.zeros((len(items), back + ramp + 1, 2))  # contacts t - back .. t + ramp, zero where not known
     kernels = np.zeros((len(items), back + ramp + 1))
     pushed = np.empty((len(items), _HISTORY_COLUMNS))
+    short = []  # (row, column beyond sight, approach inputs) of the locks that see less than their ramp
     for k, (lock, t, *_) in enumerate(items):
         lock._contact_window(t, 1, windows[k])
+        if lock.sight < ramp:
+            windows[k, back + lock.sight + 1:] = 0.0  # beyond sight: not pushed yet, live
+            short.append((k, back + lock.sight + 1, lock._approach_inputs(np.array([t + lock.sight]))))
         kernels[k, back - lock.back:] = lock._blend
         pushed[k] = lock._pushed(t, 1)[0]
         lock._forget_before(t - lock.back)
     windows = windows.transpose(0, 2, 1)  # (locks, 2, kernel)
-    weights = _lock_weights(windows, kernels[:, None], back)
     down = _down(windows, ramp)
+    if short:
+        near = approach_columns(*(np.concatenate(part) for part in zip(*(inputs for _, _, inputs in short))))
+        windows[[k for k, _, _ in short], :, [column for _, column, _ in short]] = near
+    weights = _lock_weights(windows, kernels[:, None], back)
     own = pushed[:, _FEET].reshape(len(items), 2, 2, 3)
     return [LockJob(lock, t, np.asarray(root, dtype=np.float64).reshape(1, 3),
                     np.asarray(inputs, dtype=np.float64)[None], np.asarray(outputs, dtype=np.float64)[None],

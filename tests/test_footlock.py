@@ -162,8 +162,11 @@ def test_a_planted_foot_stands_no_further_than_the_stance_cap_beside_the_input()
     assert np.abs(offset[1:] - STANCE.stance_cap).max() < 0.05  # as far as allowed, and no further
 
 
-@pytest.mark.parametrize("paced", [False, True])
-def test_streaming_a_frame_at_a_time_equals_the_whole_clip(paced):
+@pytest.mark.parametrize("paced, sight", [(False, 4), (True, 4), (False, 1), (True, 1)])
+def test_streaming_a_frame_at_a_time_equals_the_whole_clip(paced, sight):
+    """Applied ``sight`` frames behind the newest pushed (a stream's delay), as for the whole
+    clip pushed at once: with a sight short of the ramp the lock foresees what the whole
+    clip would show it, and reads nothing of it."""
     roots, q = stepping(180)
     out_in = restyled(q)
     settings = ContactSettings()
@@ -172,14 +175,14 @@ def test_streaming_a_frame_at_a_time_equals_the_whole_clip(paced):
         roots = roots + np.outer(0.3 * np.arange(len(q)), [0.0, 0.0, 1.0])
         settings = replace(settings, pace=((0.3, 0.24),))
         mix = np.clip((np.arange(len(q)) - 20) / 30.0, 0.0, 1.0)
-    whole = FootLock(SK, ramp=4, settings=settings)
+    whole = FootLock(SK, ramp=4, settings=settings, sight=sight)
     whole.push(roots, q)
     expected_roots, expected = whole.apply(0, roots, q, out_in, mix)
-    live = FootLock(SK, ramp=4, settings=settings)
+    live = FootLock(SK, ramp=4, settings=settings, sight=sight)
     got, got_roots = [], []
     for t in range(len(q)):
         live.push(roots[t:t + 1], q[t:t + 1])
-        k = t - 4
+        k = t - sight
         if k >= 0:
             r, frame = live.apply(k, roots[k:k + 1], q[k:k + 1], out_in[k:k + 1], None if mix is None else mix[k:k + 1])
             got.append(frame[0])
@@ -468,9 +471,67 @@ def test_the_soft_floor_is_continuous_with_its_slope_and_never_lifts_above_the_i
     np.testing.assert_array_equal(capped[h >= own], h[h >= own])
 
 
-def test_the_ramp_never_looks_further_ahead_than_the_stream_delay():
-    assert FootLock.for_stream(SK, delay=1).ramp == 1
-    assert FootLock.for_stream(SK, delay=60).ramp == ContactSettings.ramp
+def test_a_lock_reads_no_further_ahead_than_the_stream_delay():
+    short, long = FootLock.for_stream(SK, delay=1), FootLock.for_stream(SK, delay=60)
+    assert (short.sight, short.ramp) == (1, ContactSettings.ramp)
+    assert long.sight == long.ramp == ContactSettings.ramp
+
+
+def test_a_lock_that_sees_one_frame_ahead_sets_in_as_the_foot_comes_down():
+    """``--latency low`` (delay 1): the lock sets in as the stepping foot comes down
+    (``approach``) and meets the contact's own weight without a step; the known-bad lock
+    that sets in over the one frame it sees (the previous release's) waits for the contact
+    and snaps in, 0 -> 0.5 -> 1."""
+    roots, q = stepping(240)
+    foreseeing, snapping, full = FootLock(SK, sight=1), FootLock(SK, ramp=1), FootLock(SK)
+    right = [lock.push(roots, q)[:, 1] for lock in (foreseeing, snapping, full)][0]
+    start = int(np.flatnonzero(right[1:] & ~right[:-1])[0]) + 1  # the right foot's first touch-down
+    w, w_snap, w_full = (lock.weights(0, 236)[:, 1] for lock in (foreseeing, snapping, full))
+    assert w_snap[start - 2] == 0.0 and w_snap[start - 1] == 0.5
+    assert w[start - 3] > 0.4 and np.all(np.diff(w[start - 6:start + 1]) > 0)  # already on its way
+    assert w[start] == 1.0
+    np.testing.assert_array_equal(w[start - 1:start + 20], w_full[start - 1:start + 20])  # from the seen frame on
+    steepest = lambda weights: np.abs(np.diff(weights, 2)).max()
+    assert steepest(w) < 0.3 < 0.45 < steepest(w_snap)
+    assert np.abs(np.diff(w)).max() <= 0.33  # slew-limited: neither foreseen nor let go in a leap
+
+
+def test_the_low_latency_preset_keeps_planted_feet_planted_on_a_real_walk(bandai_root):
+    """A held-out walk through the shipped pair model at hop 1 with one frame of delay, as
+    ``serve --latency low`` sends it: the foot lock's foresight keeps the planted feet's
+    slide and the feet's jerk near the input's; the known-bad lock that sets in over the one
+    frame it sees slid the planted feet 1.7x the input's (held-out walks and runs: 1.6-2.1x,
+    1.05-1.17x foreseeing)."""
+    from stylecast.models import metrics as M
+    from stylecast.models.restyle import restyle_rotations
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.bvh import read_bvh
+    from stylecast.motion.humanoid import Retarget
+    from stylecast.motion.resample import resample
+    from stylecast.motion.words import correction_tau_of, start_of
+
+    clip = read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_walk_normal_010.bvh.gz")
+    humanoid = resample(Retarget.for_clip(clip).to_humanoid(clip), 60.0)
+    inp, roots = humanoid.rotations.astype(np.float64), humanoid.root_positions.astype(np.float64)
+    r = Restyler.load(None).with_performer_style("normal")
+    r = r.for_target(r.default_target)
+    own = feet_for(AUTO_FEET, r)
+    p_in = M.world_positions(inp, roots, humanoid.skeleton)
+    planted = M.planted(p_in)
+    feet = [HUMANOID_BONES.index(f"{side}{bone}") for side in ("Left", "Right") for bone in ("Foot", "Toes")]
+
+    def slide_and_jerk(contacts):
+        out, moved = restyle_rotations(inp, r.restyle_words, 1, contacts=contacts, roots=roots, live=True,
+                                       skeleton=humanoid.skeleton, start_restyled=start_of(r),
+                                       correction_tau=correction_tau_of(r))
+        p = M.world_positions(out, moved, humanoid.skeleton)
+        slide = M.slide_samples(p, planted).mean() / M.slide_samples(p_in, planted).mean()
+        return slide, M.jerk(p)[:, feet].mean() / M.jerk(p_in)[:, feet].mean()
+
+    slide, jerk = slide_and_jerk(own)
+    slide_snapping, jerk_snapping = slide_and_jerk(replace(own, ramp=1))
+    assert slide < 1.25 and slide_snapping > 1.5
+    assert jerk < jerk_snapping - 0.2
 
 
 def solved_knees(thigh_degrees: np.ndarray, knee_degrees, lift: float,
@@ -922,20 +983,23 @@ def test_a_foot_lifted_slowly_through_the_hysteresis_band_is_found_alike_one_fra
     assert whole[1:, 0].all()  # the standing foot never lets go
 
 
-@pytest.mark.parametrize("ramps, releases", [((4, 4, 4), (None, None, None)), ((4, 4, 4), (8, None, 2)),
-                                             ((4, 2, 0), (None, None, None))])
-def test_locks_planned_in_one_call_plan_what_each_plans_alone(ramps, releases):
+@pytest.mark.parametrize("ramps, releases, sights", [((4, 4, 4), (None, None, None), (4, 4, 4)),
+                                                     ((4, 4, 4), (8, None, 2), (4, 4, 4)),
+                                                     ((4, 2, 0), (None, None, None), (4, 2, 0)),
+                                                     ((4, 4, 4), (8, None, None), (1, 4, 2))])
+def test_locks_planned_in_one_call_plan_what_each_plans_alone(ramps, releases, sights):
     """The daemon plans every performer's frame of a tick in one call (``plan_locks``: the
     lock weights of all in one pass); each job must be the one ``FootLock.plan`` makes,
     weights through touch-downs and lift-offs, floor and the input's feet, past the
     trimming of the histories (locks of different ramps plan one by one; different
-    releases, as ``--feet input`` and ``stance`` have, in the same pass)."""
+    releases, as ``--feet input`` and ``stance`` have, and different sights, in the same
+    pass)."""
     roots, q = stepping(400)
     out = restyled(q)
     sizes = (1.0, 0.85, 1.1)
     settings = [ContactSettings(release=r) for r in releases]
-    together = [FootLock(SK.with_offsets(SK.offsets * k), ramp=r, settings=c) for k, r, c in zip(sizes, ramps, settings)]
-    alone = [FootLock(SK.with_offsets(SK.offsets * k), ramp=r, settings=c) for k, r, c in zip(sizes, ramps, settings)]
+    together, alone = ([FootLock(SK.with_offsets(SK.offsets * k), ramp=r, settings=c, sight=v)
+                        for k, r, c, v in zip(sizes, ramps, settings, sights)] for _ in range(2))
     scaled = [roots * [1, k, 1] for k in sizes]
     for t in range(len(q)):
         for a, b, r in zip(together, alone, scaled):

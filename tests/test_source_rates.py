@@ -155,7 +155,7 @@ def test_a_30_hz_stream_is_shown_delay_periods_after_each_frame_where_its_words_
 
     _, _, frames, _, daemon = stream_through_daemon(30.0, StandInRestyler(), hop, delay)
     s = daemon.sessions[0]
-    assert s.settings.delay == delay and (s.lead if s.feet.ramp < delay else 0) == lead
+    assert s.settings.delay == delay and (s.lead if s.feet.sight < delay else 0) == lead
     assert s.held_first == (1 if hop == 4 else 0)
     periods = [s.latency.percentile(q) * OUTPUT_FPS for q in (0, 50, 100)]
     assert np.allclose(periods, delay + 1 - lead, atol=1e-6), periods
