@@ -731,7 +731,7 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
 class FootLock:
     """Contact detection on the input stream and the lock on the output stream (see the
     module docstring). ``push`` every input frame (index t = 0, 1, ... in order), then
-    ``apply`` output frames up to ``ramp`` frames behind the newest pushed input."""
+    ``apply`` output frames up to ``sight`` frames behind the newest pushed input."""
 
     def __init__(self, skeleton: Skeleton, ramp: int | None = None, settings: ContactSettings = ContactSettings(),
                  sight: int | None = None):
@@ -740,7 +740,7 @@ class FootLock:
         self.settings = settings
         self.ramp = settings.ramp if ramp is None else max(0, int(ramp))
         # Input frames beyond an output frame the lock may read (the stream's delay); the
-        # contacts of the ramp's frames further ahead are foreseen (``foresee_contacts``).
+        # ramp's frames further ahead it foresees (``approach``).
         self.sight = self.ramp if sight is None else min(max(0, int(sight)), self.ramp)
         self.release = self.ramp if settings.release is None else max(0, int(settings.release))
         # The contacts a frame's weight reads: ``back`` frames before it (the release's, at
@@ -786,9 +786,11 @@ class FootLock:
         # How far the ankle sits above the ball when the foot stands flat: the foot bone's
         # vertical extent in the T-pose (feet point forward and down).
         self._ankle_rest = float(np.mean([-self.offsets[toes][1] for _, _, _, toes in LEGS]))
-        s = self.settings  # ...and what ``approach_columns`` reads of this lock
+        # ...and what ``approach_columns`` reads of this lock: the kernel's weight just beyond
+        # its sight (none where the sight covers the ramp: nothing is foreseen)
+        s, beyond = self.settings, self.back + self.sight + 1
         self._approach_numbers = np.array([[self._ankle_rest, s.plant_height, s.plant_speed, s.release_height,
-                                            self._blend[min(self.back + self.sight + 1, len(self._blend) - 1)]]])
+                                            self._blend[beyond] if beyond < len(self._blend) else 1.0]])
 
     # -- input side ---------------------------------------------------------------------
     def push(self, roots: np.ndarray, rotations: np.ndarray) -> np.ndarray:
@@ -874,7 +876,8 @@ class FootLock:
         windows = windows.copy()
         windows[..., self.back + self.sight + 1:] = 0.0  # beyond sight: not pushed yet, live
         down = _down(windows, self.ramp)
-        windows[..., self.back + self.sight + 1] = approach_columns(*self._approach_inputs(t0 + self.sight + np.arange(n)))
+        newest = t0 + self.sight + np.arange(n)
+        windows[..., self.back + self.sight + 1] = approach_columns(*self._approach_inputs(newest))
         return _lock_weights(windows, self._blend, self.back), down
 
     def _approach_inputs(self, newest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
