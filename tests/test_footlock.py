@@ -492,8 +492,11 @@ def test_a_lock_that_sees_one_frame_ahead_sets_in_as_the_foot_comes_down():
     assert w[start] == 1.0
     np.testing.assert_array_equal(w[start - 1:start + 20], w_full[start - 1:start + 20])  # from the seen frame on
     steepest = lambda weights: np.abs(np.diff(weights, 2)).max()
-    assert steepest(w) < 0.3 < 0.45 < steepest(w_snap)
+    assert steepest(w) < 0.3 and steepest(w_snap) > 0.45
     assert np.abs(np.diff(w)).max() <= 0.33  # slew-limited: neither foreseen nor let go in a leap
+    lift = start + int(np.argmin(right[start:]))
+    land = lift + int(np.argmax(right[lift:]))
+    assert np.count_nonzero(w[lift:land] == 0.0) > 10  # a foot up in its swing is left free
 
 
 def test_the_low_latency_preset_keeps_planted_feet_planted_on_a_real_walk(bandai_root):
