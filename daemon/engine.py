@@ -41,7 +41,7 @@ from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
 from stylecast.motion.footlock import feet_for, pace_of
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
-from stylecast.motion.words import BlendSettings, correction_tau_of, start_of
+from stylecast.motion.words import BlendSettings, stream_settings_of
 
 from .commands import apply_command
 from .config import FPS, DaemonConfig
@@ -165,9 +165,7 @@ class Daemon:
         if config.style:
             restyler = with_style(restyler, config.style)
         restyler = with_performer_style(restyler, config.performer_style)
-        # Read by each stream at its first frame: the model's own start and correction low-pass.
-        self.settings.start_restyled = start_of(restyler)
-        self.settings.correction_tau = correction_tau_of(restyler)
+        self._take_stream_settings(restyler)
         self.worker = InferenceWorker(restyler, clock=clock.now)
         self.delay_notes: list[str] = []  # the status lines of delay raises and lowerings (also logged)
         self._configured_delay = self.settings.delay  # the planner never lowers below it
@@ -387,6 +385,12 @@ class Daemon:
                     log.info(line)
 
     # -- control ------------------------------------------------------------------------
+    def _take_stream_settings(self, model) -> None:
+        """The model's own start and correction low-pass (``words.stream_settings_of``), read by
+        each stream at its first frame: a running stream keeps its own."""
+        for name, value in stream_settings_of(model).items():
+            setattr(self.settings, name, value)
+
     def _apply_control(self) -> None:
         with self._model_lock:
             model, self._pending_model = self._pending_model, None
@@ -395,9 +399,7 @@ class Daemon:
                 for s in self.sessions:
                     s.set_style(None)
             self.worker.set_restyler(model)
-            # For the streams that start from now on; a running stream keeps its own.
-            self.settings.start_restyled = start_of(model)
-            self.settings.correction_tau = correction_tau_of(model)
+            self._take_stream_settings(model)  # for the streams that start from now on
             self.style = style_label(model)
             self._set_pace(self.sessions)
             log.info("model %s is live", self.style)

@@ -57,7 +57,7 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.footlock import AUTO_FEET, FEET, ContactSettings, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.smoothing import CORRECTION_TAU
-from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, correction_tau_of, start_of
+from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, stream_settings_of
 
 from . import data as D
 from .data import bandai_skeleton
@@ -158,8 +158,7 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
         r = _optional_model(name, log)  # shipped pair models, beside a pair model of the same styles
         if r is not None and r.styles == proposed.styles and r.path != proposed.path:
             out.append(Variant(name, r.for_target(proposed.target_style).restyle_words, note,
-                               contacts=feet_for(AUTO_FEET, r), start_restyled=start_of(r),
-                               correction_tau=correction_tau_of(r)))
+                               contacts=feet_for(AUTO_FEET, r), **stream_settings_of(r)))
     for name, path in extra.items():
         try:
             other = Restyler.load(path).for_target(proposed.target_style)
@@ -172,29 +171,27 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
         other = other.with_performer_style(source)
         out.append(Variant(name, other.restyle_words, f"`{path}` ({other.name}, {other.source_style} -> "
                                                       f"{other.target_style})", contacts=feet_for(AUTO_FEET, other),
-                           start_restyled=start_of(other), correction_tau=correction_tau_of(other)))
-    start = start_of(proposed)  # a stream's first frame as the model under test ships it
-    tau = correction_tau_of(proposed)  # ...and its correction's low-pass
+                           **stream_settings_of(other)))
+    ships = stream_settings_of(proposed)  # its stream's start and correction low-pass, as it ships
     out.append(Variant("proposed-unlocked", proposed.restyle_words, "the model under test without the foot lock",
-                       lock_feet=False, start_restyled=start, correction_tau=tau))
+                       lock_feet=False, **ships))
     own = feet_for(AUTO_FEET, proposed)  # the foot lock it ships with (``--feet auto``)
     out.append(Variant("proposed-unsmoothed", proposed.restyle_words,
                        "the model under test without the correction low-pass", contacts=own,
-                       start_restyled=start, correction_tau=0.0))
+                       **{**ships, "correction_tau": 0.0}))
     out.append(Variant("proposed-fixed-pelvis", proposed.restyle_words,
                        "the model under test with the root's height passed through (no pelvis height)",
-                       contacts=replace(own, pelvis_tau=0), start_restyled=start, correction_tau=tau))
+                       contacts=replace(own, pelvis_tau=0), **ships))
     out.append(Variant("proposed-input-pace", proposed.restyle_words,
                        "the model under test at the input's pace (`--pace input`: the root's horizontal path passes "
-                       "through)", contacts=feet_for(AUTO_FEET, proposed, "input"), start_restyled=start,
-                       correction_tau=tau))
+                       "through)", contacts=feet_for(AUTO_FEET, proposed, "input"), **ships))
     other = next(name for name in FEET if name != proposed.feet)
     out.append(Variant(f"proposed-feet-{other}", proposed.restyle_words,
                        f"the model under test with `--feet {other}` instead of its own",
-                       contacts=feet_for(other, proposed), start_restyled=start, correction_tau=tau))
+                       contacts=feet_for(other, proposed), **ships))
     out.append(Variant("proposed", proposed.restyle_words, f"`{proposed.path}` (model under test, "
                                                            f"`--feet {proposed.feet}`, `--pace style`)", contacts=own,
-                       start_restyled=start, correction_tau=tau))
+                       **ships))
     return out
 
 

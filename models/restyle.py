@@ -23,7 +23,7 @@ import numpy as np
 from stylecast.motion import rotations as rot
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
-from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH, Restyled, correction_tau_of, start_of
+from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH, Restyled, stream_settings_of
 
 
 def mirror_indices(num_frames: int, before: int, after: int) -> np.ndarray:
@@ -145,7 +145,7 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
     h60 = resample(humanoid, FPS)
     restyled60 = restyle_rotations(h60.rotations, restyler.restyle_words, hop, intensity, live=live,
                                    roots=h60.root_positions, skeleton=h60.skeleton, contacts=contacts,
-                                   start_restyled=start_of(restyler), correction_tau=correction_tau_of(restyler),
+                                   **stream_settings_of(restyler),
                                    held_first=half_rate_held(clip.fps, hop) if live else 0)
     out_fps = float(fps) if fps else clip.fps
     if abs(out_fps - clip.fps) < 1e-9:

@@ -194,6 +194,13 @@ def correction_tau_of(restyler) -> float:
     return float(getattr(restyler, "correction_tau", CORRECTION_TAU))
 
 
+def stream_settings_of(restyler) -> dict:
+    """The ``BlendSettings`` a model names for the streams it restyles (``start_of``,
+    ``correction_tau_of``), by their field names: ``serve``, ``restyle`` and ``eval`` all
+    take them from here, so none of them can miss one."""
+    return {"start_restyled": start_of(restyler), "correction_tau": correction_tau_of(restyler)}
+
+
 def _spring_at(offset: np.ndarray, c2: np.ndarray, omega, k) -> np.ndarray:
     """A critically damped spring pulling ``offset`` to zero, k frames on, in closed form:
     x(k) = (x0 + c2 k) e^(-w k) with c2 = v0 + w x0."""

@@ -17,7 +17,7 @@ from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip
 from stylecast.motion.footlock import AUTO_FEET, FEET, LEG_INDEX, FootLock, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
-from stylecast.motion.words import BlendSettings, correction_tau_of, restyle_stream, start_of
+from stylecast.motion.words import BlendSettings, restyle_stream, stream_settings_of
 
 J = len(HUMANOID_BONES)
 CHECKPOINT = Path(__file__).resolve().parents[1] / "models" / "checkpoints" / "normal2exhausted.safetensors"
@@ -68,7 +68,7 @@ def offline(clip: Clip, restyler, hop: int, contacts=None, intensity: float = 1.
     return restyle_rotations(clip.rotations, restyler.restyle_words, hop, intensity, crossfade_frames=30, live=True,
                              roots=clip.root_positions, skeleton=clip.skeleton,
                              contacts=feet_for(AUTO_FEET, restyler) if contacts is None else contacts,
-                             start_restyled=start_of(restyler), correction_tau=correction_tau_of(restyler),
+                             **stream_settings_of(restyler),
                              held_first=held_first)
 
 

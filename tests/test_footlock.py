@@ -511,7 +511,7 @@ def test_the_low_latency_preset_keeps_planted_feet_planted_on_a_real_walk(bandai
     from stylecast.motion.bvh import read_bvh
     from stylecast.motion.humanoid import Retarget
     from stylecast.motion.resample import resample
-    from stylecast.motion.words import correction_tau_of, start_of
+    from stylecast.motion.words import stream_settings_of
 
     clip = read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_walk_normal_010.bvh.gz")
     humanoid = resample(Retarget.for_clip(clip).to_humanoid(clip), 60.0)
@@ -525,8 +525,7 @@ def test_the_low_latency_preset_keeps_planted_feet_planted_on_a_real_walk(bandai
 
     def slide_and_jerk(contacts):
         out, moved = restyle_rotations(inp, r.restyle_words, 1, contacts=contacts, roots=roots, live=True,
-                                       skeleton=humanoid.skeleton, start_restyled=start_of(r),
-                                       correction_tau=correction_tau_of(r))
+                                       skeleton=humanoid.skeleton, **stream_settings_of(r))
         p = M.world_positions(out, moved, humanoid.skeleton)
         slide = M.slide_samples(p, planted).mean() / M.slide_samples(p_in, planted).mean()
         return slide, M.jerk(p)[:, feet].mean() / M.jerk(p_in)[:, feet].mean()
