@@ -744,7 +744,7 @@ def test_a_stance_let_go_over_8_frames_does_not_snap_a_lifting_foot_to_its_swing
     from stylecast.motion.bvh import read_bvh
     from stylecast.motion.humanoid import Retarget
     from stylecast.motion.resample import resample
-    from stylecast.motion.words import start_of
+    from stylecast.motion.words import stream_settings_of
 
     clip = read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_walk-turn-right_normal_010.bvh.gz")
     humanoid = resample(Retarget.for_clip(clip).to_humanoid(clip), 60.0)
@@ -757,7 +757,7 @@ def test_a_stance_let_go_over_8_frames_does_not_snap_a_lifting_foot_to_its_swing
 
     def feet_pops(release):
         out, moved = restyle_rotations(inp, r.restyle_words, contacts=replace(own, release=release), roots=roots,
-                                       skeleton=humanoid.skeleton, start_restyled=start_of(r))
+                                       skeleton=humanoid.skeleton, **stream_settings_of(r))
         return M.jerk(M.world_positions(out, moved, humanoid.skeleton))[:, feet].max() / jerk_in.max()
 
     assert feet_pops(8) < 1.6

@@ -148,7 +148,7 @@ def test_a_restyle_that_straightens_an_arm_does_not_pop_it(bandai_root):
     from stylecast.models.restyle import restyle_rotations
     from stylecast.models.restyler import Restyler
     from stylecast.motion.footlock import AUTO_FEET, feet_for
-    from stylecast.motion.words import start_of
+    from stylecast.motion.words import stream_settings_of
 
     clip = read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_raise-up-right-hand_normal_023.bvh.gz")
     humanoid = resample(Retarget.for_clip(clip).to_humanoid(clip), 60.0)
@@ -158,7 +158,7 @@ def test_a_restyle_that_straightens_an_arm_does_not_pop_it(bandai_root):
 
     def pops():
         out, moved = restyle_rotations(inp, r.restyle_words, contacts=feet_for(AUTO_FEET, r), roots=roots,
-                                       skeleton=humanoid.skeleton, start_restyled=start_of(r))
+                                       skeleton=humanoid.skeleton, **stream_settings_of(r))
         return M.peak_jerk_ratio(jerk_in, M.jerk(M.world_positions(out, moved, humanoid.skeleton)))
 
     assert pops() < 1.5
