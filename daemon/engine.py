@@ -9,9 +9,8 @@ Latency model (``motion.words`` has the derivation):
   (delay >= hop, default hop), so the added latency is delay/60 s plus the processing
   time of the tick (a replayed source arrives on the ticks themselves).
 * The word ending at e is first needed delay - hop + 1 ticks after frame e arrived (the
-  model's *slack*, ``BlendSettings.slack``: live, a frame is served with no lead). The
-  slack is chosen so words are on time (``daemon.latency``): the model is timed before
-  the clock starts, and the delay is raised, with one status line,
+  model's *slack*). The slack is chosen so words are on time (``daemon.latency``): the
+  model is timed before the clock starts, and the delay is raised, with one status line,
   when the measured time from a tick to its results no longer fits. A word that is
   still not back in time is *late*: the blender fades that stretch to pass-through and
   blends back in when words return (counted per performer as late frames). The output
@@ -247,7 +246,7 @@ class Daemon:
     # -- slack: every word on time (daemon.latency) ----------------------------------------
     @property
     def slack(self) -> int:
-        return self.settings.slack
+        return self.settings.delay - self.settings.hop + 1
 
     def words_per_tick(self) -> int:
         """The most words one tick hands the model: the performers sharing a word phase."""
@@ -275,10 +274,9 @@ class Daemon:
         if needed is None:
             return
         reason = f"results ready up to {planner.estimate_ms():.1f} ms after their tick"
-        configured_slack = self.slack - (self.settings.delay - self._configured_delay)  # never lowered below it
         if needed > self.slack:
             self._raise_slack(needed, reason)
-        elif planner.can_lower(self.slack, configured_slack):
+        elif planner.can_lower(self.slack, self._configured_delay - self.settings.hop + 1):
             self._lower_delay(reason)
 
     def _lower_delay(self, reason: str) -> None:
@@ -290,7 +288,7 @@ class Daemon:
             return
         capped = needed > MAX_SLACK
         hop, old = self.settings.hop, self.settings.delay
-        new = old + min(needed, MAX_SLACK) - self.slack
+        new = hop - 1 + min(needed, MAX_SLACK)
         if new <= old:
             return
         self._set_delay(new, delay_line(reason, hop, old, new, capped), logging.WARNING)

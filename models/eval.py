@@ -57,7 +57,7 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.footlock import AUTO_FEET, FEET, ContactSettings, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.smoothing import CORRECTION_TAU
-from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, offline_lead, serving_word_end, stream_settings_of
+from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, serving_word_end, stream_settings_of
 
 from . import data as D
 from .data import bandai_skeleton
@@ -73,18 +73,15 @@ SHIPPED_V1 = "normal2exhausted-v1"
 SHIPPED_V2 = "normal2exhausted-v2"
 SHIPPED_V3 = "normal2exhausted-v3"
 BASELINE = "normal2exhausted-coherence"
-# (name, rendered as a stream that starts with the clip, frames dropped before measuring,
-# served from inside its words: ``BlendSettings.lead``).
+# (name, rendered as a stream that starts with the clip, frames dropped before measuring).
 # "stream": every frame served by words, as ``serve`` sends a stream that has been running
 # (the clip is pre-rolled with its own mirrored motion, as ``restyle`` does; that the
 # daemon computes exactly this is tests/test_daemon.py's restyle --live == serve).
-# "offline": what ``restyle`` writes: the same, each frame a frame further inside its word
-# (``words.offline_lead``: nothing waits for the model offline).
 # "live-from-start": ``serve`` started on the clip itself: its first words hold the clip's
 # first frame before it, and the first frame is shown restyled (``BlendSettings.start_restyled``;
 # a fade-in over the first half second until 2026-11-28). The held-out takes are 2 to 9 s long
 # (median 2.2 s), so a stream's start is a good part of a clip; the goals are read on "stream".
-SETTINGS = (("stream", False, 0, False), ("offline", False, 0, True), ("live-from-start", True, 0, False))
+SETTINGS = (("stream", False, 0), ("live-from-start", True, 0))
 # The held-out files' own rate (the Bandai BVHs, tests/test_bvh.py checks it): serve replaying
 # one starts it as a half-rate stream (``restyle.half_rate_held``), and "live-from-start" with it.
 LIVE_SOURCE_FPS = 30.0
@@ -115,13 +112,12 @@ def frame_differences(quats: np.ndarray) -> np.ndarray:
     return np.linalg.norm(np.diff(measure_space(quats), axis=0), axis=-1)
 
 
-def switch_mask(num_frames: int, hop: int, live: bool, held_first: int = 0, lead: int = 0) -> np.ndarray:
+def switch_mask(num_frames: int, hop: int, live: bool, held_first: int = 0) -> np.ndarray:
     """(T-1,) True where frames t-1 and t are served by different words (``held_first``: a
-    live stream's held copies of its first frame, ``restyle_rotations``'; ``lead``: its
-    ``BlendSettings.lead``). A live stream's first words, ending before frame 59, are counted
-    as one."""
+    live stream's held copies of its first frame, ``restyle_rotations``'). A live stream's
+    first words, ending before frame 59, are counted as one."""
     before = held_first if live else padding(hop)[0]
-    serving = np.maximum(serving_word_end(np.arange(num_frames) + before, hop, lead=lead), WORD - 1)
+    serving = np.maximum(serving_word_end(np.arange(num_frames) + before, hop), WORD - 1)
     return serving[1:] != serving[:-1]
 
 
@@ -414,9 +410,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     results: dict = {}
     outputs_for_plot: dict = {}
     for variant in build_variants(proposed, variants, posture, log, source):
-        for setting, live, skip, offline in SETTINGS:
+        for setting, live, skip in SETTINGS:
             held_first = half_rate_held(LIVE_SOURCE_FPS, hop) if live else 0
-            lead = offline_lead(hop) if offline else 0
             per_clip, preds, acts, short_acts, dyns, feats, ds, masks = [], [], [], [], [], [], [], []
             for m in clips:
                 inp = m.rotations.astype(np.float64)
@@ -429,10 +424,9 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                     res, moved = restyle_rotations(inp, variant.restyle_words, hop, live=live,
                                                    correction_tau=variant.correction_tau,
                                                    start_restyled=variant.start_restyled,
-                                                   contacts=variant.contacts, held_first=held_first, lead=lead,
-                                                   **lock)
+                                                   contacts=variant.contacts, held_first=held_first, **lock)
                     out_roots = roots if moved is None else moved  # the pelvis height the lock set
-                mask = switch_mask(len(res), hop, live, held_first, lead)[skip:]
+                mask = switch_mask(len(res), hop, live, held_first)[skip:]
                 inp, res, roots, out_roots = inp[skip:], res[skip:], roots[skip:], out_roots[skip:]
                 per_clip.append(_clip_measures(inp, res, roots, out_roots, skeleton))
                 w = judge_windows(res, out_roots, skeleton)

@@ -11,9 +11,7 @@ the pelvis height (the restyled legs' bend stands on the planted feet) and, with
 The live stream starts in pass-through and fades the restyled output in once the first
 word is due; an offline clip has no "before", so it is padded at the start (and the end)
 by mirroring its own motion. Every real frame is then served by a complete word at full
-intensity, and a clip shorter than one word is still restyled. Offline nothing waits for the
-model, so each frame is taken a frame further inside its word than live (``words.OFFLINE_LEAD``);
-``--live`` gives exactly what ``serve`` sends.
+intensity, and a clip shorter than one word is still restyled.
 """
 
 from __future__ import annotations
@@ -25,7 +23,7 @@ import numpy as np
 from stylecast.motion import rotations as rot
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
-from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH, Restyled, offline_lead, stream_settings_of
+from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH, Restyled, stream_settings_of
 
 
 def mirror_indices(num_frames: int, before: int, after: int) -> np.ndarray:
@@ -36,29 +34,27 @@ def mirror_indices(num_frames: int, before: int, after: int) -> np.ndarray:
 CROSSFADE_FRAMES = 30
 
 
-def padding(hop: int, crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
-            lead: int = 0) -> tuple[int, int]:
+def padding(hop: int, crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None) -> tuple[int, int]:
     """Mirrored frames added (before, after) a clip. Before the first real frame: one word,
     so the words that serve real frames hold no held-pose lead-in of the stream's start
     (``words.first_word_end``), then long enough for the seam spring to settle from
     the stream's first switches (critically damped: (1 + k/d) e^(-k/d) < 0.3 % after
     k = 8 d frames) and, with room to spare, the fade-in (over by then). After the last
-    real frame: one hop and the ``lead``, so a word covers it with real motion rather than
-    a held pose."""
+    real frame: one hop, so a word covers it with real motion rather than a held pose."""
     from stylecast.motion.words import BlendSettings
 
     decay = max(BlendSettings(hop=hop).decay_frames, decay_frames or 0.0)  # one grid for blend on and off
-    return WORD_LENGTH + max(crossfade_frames, int(np.ceil(8 * decay))), hop + lead
+    return WORD_LENGTH + max(crossfade_frames, int(np.ceil(8 * decay))), hop
 
 
 def word_switches(num_frames: int, hop: int, crossfade_frames: int = CROSSFADE_FRAMES,
-                  decay_frames: float | None = None, lead: int = 0) -> np.ndarray:
+                  decay_frames: float | None = None) -> np.ndarray:
     """Boolean (T-1,): True where frames t-1 and t of a restyled clip come from different
     words (the seams the paper's section 4.5 is about)."""
     from stylecast.motion.words import serving_word_end
 
     before, _ = padding(hop, crossfade_frames, decay_frames)
-    serving = serving_word_end(np.arange(num_frames) + before, hop, lead=lead)
+    serving = serving_word_end(np.arange(num_frames) + before, hop)
     return serving[1:] != serving[:-1]
 
 
@@ -66,7 +62,7 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
                       crossfade_frames: int = CROSSFADE_FRAMES, decay_frames: float | None = None,
                       live: bool = False, roots: np.ndarray | None = None, skeleton=None,
                       correction_tau: float | None = None, contacts=None,
-                      start_restyled: bool = True, held_first: int = 0, lead: int = 0) -> Restyled:
+                      start_restyled: bool = True, held_first: int = 0) -> Restyled:
     """Humanoid rotations (T, J, 4) at 60 fps -> restyled rotations (T, J, 4) and, where
     ``roots`` (T, 3) are given, root positions; any T >= 1.
     ``decay_frames=0`` turns the seam blend off (plain concatenated words). ``live``: no
@@ -78,9 +74,7 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
     they are not. ``start_restyled``: a live stream's first frame shown restyled, not faded
     in (``BlendSettings.start_restyled``; the model's own is ``words.start_of``).
     ``held_first`` (live only): copies of the first frame the stream starts with, as the
-    daemon starts a half-rate source (``half_rate_held``); their frames are not returned.
-    ``lead``: each frame served that many frames inside its word (``BlendSettings.lead``):
-    0 is what ``serve`` sends; ``restyle`` offline takes ``words.offline_lead``."""
+    daemon starts a half-rate source (``half_rate_held``); their frames are not returned."""
     from stylecast.motion.footlock import ContactSettings, FootLock
     from stylecast.motion.words import BlendSettings, restyle_stream
 
@@ -88,9 +82,9 @@ def restyle_rotations(rotations: np.ndarray, restyle_words, hop: int = DEFAULT_H
         raise UserError(f"--hop must be between 1 and {WORD_LENGTH} frames, got {hop}")
     T = len(rotations)
     settings = BlendSettings(hop=hop, crossfade_frames=crossfade_frames, decay_frames=decay_frames,
-                             start_restyled=start_restyled, lead=lead,
+                             start_restyled=start_restyled,
                              **({} if correction_tau is None else {"correction_tau": correction_tau}))
-    before, after = (0, 0) if live else padding(hop, settings.crossfade_frames, settings.decay_frames, lead)
+    before, after = (0, 0) if live else padding(hop, settings.crossfade_frames, settings.decay_frames)
     if held_first and not live:
         raise ValueError("held_first is the daemon's start of a live stream: only with live=True")
     idx = np.concatenate([np.zeros(held_first, int), mirror_indices(T, before, after)])
@@ -142,9 +136,7 @@ def sample_at(rotations: np.ndarray, fps: float, times: np.ndarray) -> np.ndarra
 def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0, fps: float | None = None,
                  user_map: dict | None = None, live: bool = False, contacts=None):
     """A source clip -> the restyled clip on the same skeleton (at ``fps`` or the input's);
-    ``contacts``: the foot lock's ``ContactSettings`` (default: ``--feet input``'s). Offline
-    each frame is served from inside its word (``words.offline_lead``: nothing waits for the
-    model); ``live`` gives what ``serve`` sends."""
+    ``contacts``: the foot lock's ``ContactSettings`` (default: ``--feet input``'s)."""
     from stylecast.motion.humanoid import Retarget
     from stylecast.motion.resample import resample
 
@@ -154,8 +146,7 @@ def restyle_clip(clip, restyler, hop: int = DEFAULT_HOP, intensity: float = 1.0,
     restyled60 = restyle_rotations(h60.rotations, restyler.restyle_words, hop, intensity, live=live,
                                    roots=h60.root_positions, skeleton=h60.skeleton, contacts=contacts,
                                    **stream_settings_of(restyler),
-                                   held_first=half_rate_held(clip.fps, hop) if live else 0,
-                                   lead=0 if live else offline_lead(hop))
+                                   held_first=half_rate_held(clip.fps, hop) if live else 0)
     out_fps = float(fps) if fps else clip.fps
     if abs(out_fps - clip.fps) < 1e-9:
         template, h_template = clip, humanoid

@@ -14,11 +14,9 @@ The walk of a frame, frame indices counted from the start of a performer's strea
   (models/checkpoints/MODEL_CARD.md, "A stream's start").
 * The restyler turns each word into a restyled word (elsewhere, possibly late).
 * ``SeamBlender`` renders output frame t at time t + delay (delay >= hop frames). Frame t
-  is served by the first word whose end e >= t + lead (so e <= t + lead + hop - 1; the
-  ``lead`` is 0 live and ``OFFLINE_LEAD`` offline, where a frame is taken from further
-  inside its word). The first frame a word serves, e + 1 - hop - lead, is rendered at
-  e + 1 + (delay - hop - lead): the model has delay - hop - lead + 1 frame periods per
-  word (``BlendSettings.slack``), and a word not there by then is late.
+  is served by the first word whose end e >= t (so e <= t + hop - 1). The first frame a
+  word serves, e + 1 - hop, is rendered at e + 1 + (delay - hop): the model has
+  delay - hop + 1 frame periods per word, and a word not there by then is late.
 
 The seam (the paper's section 4.5: consecutive words disagree where they meet) is
 removed by an *offset blend*: when serving switches from word A to word B, the blender
@@ -58,20 +56,6 @@ from .smoothing import CORRECTION_TAU, CorrectionFilter
 
 WORD_LENGTH = 60
 DEFAULT_HOP = 4  # frames between words when nobody says otherwise: serve's default latency preset, restyle, eval
-# Offline (``restyle`` without --live, ``eval``'s running stream) a frame is served one frame
-# inside its word (``BlendSettings.lead``): nothing waits for the model there. A word's last
-# frame is the one the generator sees no motion after; the training split's normal clips, hop
-# 4, the default (three conv judges): held hands and head 1.52 -> 1.40x the input's speed,
-# sync 0.865 -> 0.874, jerk 1.015 -> 1.010, judged exhausted on the worst judge 95.4 -> 95.1 %
-# (models/checkpoints/MODEL_CARD.md, "A frame served from inside its word"). Live, each frame
-# of lead is a frame period less for the model at the same delay: ``serve`` keeps 0.
-OFFLINE_LEAD = 1
-
-
-def offline_lead(hop: int, word_length: int = WORD_LENGTH) -> int:
-    """``BlendSettings.lead`` of an offline restyle at ``hop``: ``OFFLINE_LEAD``, less where a
-    word has no frame to spare (hop 60)."""
-    return min(OFFLINE_LEAD, word_length - hop)
 
 
 def first_word_end(hop: int, word_length: int = WORD_LENGTH, phase: int = 0) -> int:
@@ -99,12 +83,11 @@ def half_rate_shift(hop: int, word_length: int = WORD_LENGTH, phase: int = 0) ->
     return first_word_end(hop, word_length, phase) % 2
 
 
-def serving_word_end(t, hop: int, word_length: int = WORD_LENGTH, phase: int = 0, lead: int = 0):
-    """End frame of the word that serves frame t >= 0 (the first grid end >= t + ``lead``,
-    ``BlendSettings.lead``); t may be an int or an integer array. Plain arithmetic: the
-    daemon asks once per performer a tick."""
+def serving_word_end(t, hop: int, word_length: int = WORD_LENGTH, phase: int = 0):
+    """End frame of the word that serves frame t >= 0 (the first grid end >= t); t may be an
+    int or an integer array. Plain arithmetic: the daemon asks once per performer a tick."""
     first = first_word_end(hop, word_length, phase)
-    return first - ((first - (t + lead)) // hop) * hop
+    return first - ((first - t) // hop) * hop
 
 
 def cut_words(frames: np.ndarray, hop: int, word_length: int = WORD_LENGTH,
@@ -174,32 +157,19 @@ class BlendSettings:
     # Shifts the word grid by this many frames (0 <= phase < hop). The daemon staggers
     # groups of performers so their words do not all reach the model on the same tick.
     phase: int = 0
-    # Frames a served frame sits inside its word beyond the grid's own: frame t is served by
-    # the first word ending at or after t + lead (``OFFLINE_LEAD`` offline, 0 live), and the
-    # model gets delay - hop - lead + 1 frame periods a word (``slack``).
-    lead: int = 0
 
     def __post_init__(self) -> None:
         if not 1 <= self.hop <= self.word_length:
             raise ValueError(f"hop must be between 1 and {self.word_length} frames, got {self.hop}")
-        if not 0 <= self.lead <= self.word_length - self.hop:
-            raise ValueError(f"lead must be between 0 and {self.word_length - self.hop} frames at hop {self.hop}, "
-                             f"got {self.lead}")
         if self.delay is None:
-            self.delay = self.hop + self.lead
-        if self.delay < self.hop + self.lead:
-            raise ValueError(f"delay ({self.delay} frames) must be at least the hop and lead ({self.hop} + "
-                             f"{self.lead} frames)")
+            self.delay = self.hop
+        if self.delay < self.hop:
+            raise ValueError(f"delay ({self.delay} frames) must be at least the hop ({self.hop} frames)")
         if not 0 <= self.phase < self.hop:
             raise ValueError(f"phase must be between 0 and hop - 1 frames, got {self.phase}")
         if self.decay_frames is None:
             self.decay_frames = float(min(max(self.hop, 4), 15))
         self.crossfade_frames = max(1, int(self.crossfade_frames))
-
-    @property
-    def slack(self) -> int:
-        """Frame periods the model gets for a word before the first frame it serves is shown."""
-        return self.delay - self.hop - self.lead + 1
 
     @property
     def first_fade_end(self) -> int:
@@ -314,8 +284,8 @@ class SeamBlender:
             self._words[int(end)] = word
 
     def serving_word(self, t: int) -> int:
-        """End frame of the word that serves frame t (the first grid end >= t + lead)."""
-        return serving_word_end(t, self.settings.hop, self.settings.word_length, self.phase, self.settings.lead)
+        """End frame of the word that serves frame t (the first grid end >= t)."""
+        return serving_word_end(t, self.settings.hop, self.settings.word_length, self.phase)
 
     def render(self, t: int, input_rotations: np.ndarray, intensity: float = 1.0, active: bool = True) -> np.ndarray:
         """Output rotations (J, 4) for frame t, given that frame's input rotations."""
@@ -345,10 +315,10 @@ class SeamBlender:
         runs, t, n = [], t0, len(inputs)
         while t < t0 + n:
             end = self.serving_word(t)
-            run = min(end - self.settings.lead, t0 + n - 1) - t + 1  # frames served by this word in the block
-            # A word ending at frame e serves frames from e + 1 - hop - lead on, which are
-            # rendered from time e + 1 + (delay - hop - lead) on: the model has ``slack``
-            # frame periods, the first word as much as any.
+            run = min(end, t0 + n - 1) - t + 1  # frames served by this word in the block
+            # A word ending at frame e serves frames from e + 1 - hop on, which are rendered
+            # from time e + 1 + (delay - hop) on: the model has delay - hop + 1 frame
+            # periods, the first word as much as any.
             word = self._words.get(end)
             if word is None and active:
                 self.late_frames += run  # should have arrived: fade out, never stall

@@ -232,35 +232,6 @@ def test_restyle_streams_with_the_models_own_start_and_low_pass_as_serve_does(mo
     assert seen["correction_tau"] == daemon.settings.correction_tau == {"normal2exhausted": 1.5, "multistyle": 2.0}[model]
     assert seen["start_restyled"] == daemon.settings.start_restyled
 
-def test_restyle_offline_takes_each_frame_from_inside_its_word_and_live_what_serve_sends():
-    """Offline nothing waits for the model, so `stylecast restyle` serves each frame a frame
-    inside its word (``words.offline_lead``); ``--live`` serves it as `serve` does. A
-    generator wrong on its words' last frame only: offline it never shows, live it does."""
-    from stylecast.daemon.clips import bundled_clip
-    from stylecast.models.restyle import restyle_clip
-    from stylecast.motion.bvh import read_bvh
-
-    clip = read_bvh(bundled_clip()).slice(0, 90)
-    turn, spike = (rot.from_euler(np.full((len(HUMANOID_BONES), 3), a), "ZXY") for a in (10.0, 30.0))
-
-    class Turning:  # a restyler, right on every frame of its words or wrong on the last
-        def __init__(self, wrong_at_the_end: bool):
-            self.wrong_at_the_end = wrong_at_the_end
-
-        def restyle_words(self, words):
-            out = rot.multiply(np.broadcast_to(turn, words.shape), words)
-            if self.wrong_at_the_end:
-                out[:, -1] = rot.multiply(np.broadcast_to(spike, out[:, -1].shape), out[:, -1])
-            return out
-
-    def gap(live):
-        right, wrong = (restyle_clip(clip, Turning(w), live=live).rotations for w in (False, True))
-        return rot.angle_between(right, wrong).max()
-
-    assert gap(live=False) < 1e-9
-    assert gap(live=True) > 1.0
-
-
 @pytest.mark.skipif(not CHECKPOINT.exists(), reason="the shipped model is not trained yet")
 def test_serve_covers_ground_at_the_styles_pace_unless_told_to_keep_the_performers():
     """``--pace style`` (the default) slows a normal walk made exhausted to the exhausted

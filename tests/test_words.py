@@ -163,41 +163,6 @@ def test_settings_are_validated():
         BlendSettings(hop=15, delay=5)
 
 
-def test_a_lead_serves_each_frame_from_inside_its_word_and_costs_the_model_a_frame_period():
-    settings = BlendSettings(hop=4, lead=1)
-    assert settings.delay == 5 and settings.slack == 1  # serve's default delay, a frame period less
-    assert BlendSettings(hop=4, delay=5).slack == 2
-    blender = SeamBlender(settings, J)
-    assert [blender.serving_word(t) for t in (0, 2, 3, 6, 7)] == [3, 3, 7, 7, 11]  # the first end >= t + 1
-    with pytest.raises(ValueError, match="delay"):
-        BlendSettings(hop=4, lead=1, delay=4)
-    with pytest.raises(ValueError, match="lead"):
-        BlendSettings(hop=60, lead=1)  # a word has no frame to spare
-
-
-@pytest.mark.parametrize("hop", [1, 4, 15])
-def test_a_lead_never_shows_a_words_last_frame(hop):
-    """A generator wrong on its words' last frame only (where it sees no motion after it):
-    served a frame inside each word, the stream is the one a generator right everywhere
-    gives; with no lead the wrong frames show."""
-    motion = smooth_motion(300)
-    turn, spike = (rot.from_euler(np.full((J, 3), a), "ZXY") for a in (10.0, 30.0))
-
-    def right(words):
-        return rot.multiply(np.broadcast_to(turn, words.shape), words)
-
-    def wrong_at_the_end(words):
-        out = right(words)
-        out[:, -1] = rot.multiply(np.broadcast_to(spike, out[:, -1].shape), out[:, -1])
-        return out
-
-    for lead in (1, 0):
-        settings = BlendSettings(hop=hop, lead=lead)
-        gap = rot.angle_between(restyle_stream(motion, right, settings).rotations,
-                                restyle_stream(motion, wrong_at_the_end, settings).rotations).max()
-        assert gap < 1e-9 if lead else gap > 1.0
-
-
 def test_frame_by_frame_rendering_equals_block_rendering():
     """The daemon renders (and low-passes the correction of) one frame per tick, restyle
     whole clips: same frames."""
