@@ -1,4 +1,4 @@
-"""The foot lock (motion/footlock.py): contacts with hysteresis, a planted foot kept where
+"""The foot lock (motion/footlock/): contacts with hysteresis, a planted foot kept where
 the input put it to within a millimetre, bone lengths kept, the same result streamed a
 frame at a time as for a whole clip, and nothing done where no foot is planted."""
 
@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import (AUTO_FEET, CLEARANCE_BAND, CLEARANCE_SLACK, FEET, LEG_INDEX, LEGS,
-                                      ContactSettings, FootLock, PelvisHeight, StanceOffset, _hysteresis,
-                                      _lock_weights, feet_for, kept_clearance, leg_chain, lock_kernel, plan_locks,
+from stylecast.motion.footlock import (AUTO_FEET, FEET, LEG_INDEX, LEGS, ContactSettings, FootLock, PelvisHeight,
+                                      StanceOffset, feet_for, kept_clearance, leg_chain, lock_kernel, plan_locks,
                                       push_frames, solve_legs, solve_lock_jobs)
+from stylecast.motion.footlock.contacts import hysteresis, lock_weights
+from stylecast.motion.footlock.solve import CLEARANCE_BAND, CLEARANCE_SLACK
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.smoothing import CorrectionFilter
 from stylecast.motion.words import BlendSettings
@@ -68,7 +69,7 @@ def test_contacts_follow_the_feet_with_hysteresis():
 def test_hysteresis_holds_between_the_two_thresholds():
     plant = np.array([[0], [1], [0], [0], [0], [0]], bool)
     release = np.array([[0], [0], [0], [0], [1], [0]], bool)
-    state = _hysteresis(plant, release, np.array([False]))[:, 0]
+    state = hysteresis(plant, release, np.array([False]))[:, 0]
     assert state.tolist() == [False, True, True, True, False, False]
 
 
@@ -405,7 +406,7 @@ def test_a_foot_in_the_air_is_kept_above_the_floor():
     p_raw, _, _ = leg_chain(new_roots, restyled_, SK.offsets)
     p_out, _, _ = leg_chain(new_roots, out, SK.offsets)
     floor = np.minimum.accumulate(p_in[:, :, 3, 1].min(axis=1))  # the lowest ball so far
-    limit = np.minimum(floor[:, None] + lock._ankle_rest, p_in[:, :, 2, 1])
+    limit = np.minimum(floor[:, None] + lock.ankle_rest, p_in[:, :, 2, 1])
     assert (limit - p_raw[:, :, 2, 1]).max() > 3.0  # without the floor: centimetres under
     assert (limit - p_out[:, :, 2, 1]).max() < 1e-6  # with it: nowhere below
     lengths = np.linalg.norm(p_out[:, :, 2] - p_out[:, :, 1], axis=-1)
@@ -456,7 +457,7 @@ def test_no_floor_is_kept_before_a_foot_has_stood_on_one():
 
 
 def test_the_soft_floor_is_continuous_with_its_slope_and_never_lifts_above_the_input():
-    from stylecast.motion.footlock import FLOOR_MARGIN, _soft_floor
+    from stylecast.motion.footlock.solve import FLOOR_MARGIN, _soft_floor
 
     h = np.linspace(-3.0, 3.0, 6001) * FLOOR_MARGIN
     zero, high = np.zeros_like(h), np.full_like(h, 100.0)
@@ -592,7 +593,7 @@ def test_a_knee_moves_smoothly_as_its_target_crosses_full_stretch():
     standing figure's knee twitched, 4.5x the input's largest jerk. The ankle falls short of
     its target by at most SOFT_REACH / e at full stretch and not at all from SOFT_REACH
     inside it."""
-    from stylecast.motion.footlock import SOFT_REACH
+    from stylecast.motion.footlock.legs import SOFT_REACH
 
     n = 400
     q = np.tile(rot.identity((J,)), (n, 1, 1))
@@ -671,7 +672,7 @@ def test_a_foot_in_the_air_near_the_floor_keeps_the_inputs_clearance_and_higher_
         assert not lock.push(roots, q)[:, 1].any()  # the right foot is in the air throughout
         new_roots, result = lock.apply(0, roots, q, out)
         chains = [leg_chain(r, x, SK.offsets)[0][10:] for r, x in ((roots, q), (roots, out), (new_roots, result))]
-        standing = chains[0][:, 0, 3, 1].min() + lock._ankle_rest  # the ankle's height standing on the floor
+        standing = chains[0][:, 0, 3, 1].min() + lock.ankle_rest  # the ankle's height standing on the floor
         heights[name] = [c[:, 1, 2, 1] - standing for c in chains]  # the input's, the restyle's, the lock's
     own, restyled, locked = heights["near"]
     # 4.5 cm up, within the band; the restyle takes 3 of them, towards the floor
@@ -726,7 +727,7 @@ def test_a_swing_shorter_than_the_lock_blends_has_no_corner():
     contacts[:10] = contacts[18:] = 1.0  # lifted for 8 frames; release 8 + ramp 4 overlap
     kernel = lock_kernel(4, 8, 8)
     windows = np.lib.stride_tricks.sliding_window_view(np.concatenate([np.ones(8), contacts, np.ones(4)]), 13)
-    joined = _lock_weights(windows, kernel, 8)
+    joined = lock_weights(windows, kernel, 8)
     larger = (windows * kernel).max(axis=-1)
     assert joined.min() > 0.0 and np.all(joined[:10] == 1.0) and np.all(joined[18:] == 1.0)
     slope_change = lambda w: np.abs(np.diff(w, 2)).max()
@@ -812,14 +813,14 @@ def test_performers_pushed_in_one_call_detect_the_contacts_each_detects_alone():
 
 
 def test_the_one_frame_float_path_equals_the_array_path():
-    from stylecast.motion.footlock import _feet_of_one_frame
+    from stylecast.motion.footlock.legs import feet_of_one_frame
 
     roots, q = stepping(30)
     q = restyled(q)
     lock = FootLock(SK)
     pos, _, _ = leg_chain(roots, q, SK.offsets)
     for t in range(30):
-        ankle, ball = _feet_of_one_frame(roots[t], q[t], lock._leg_offsets)
+        ankle, ball = feet_of_one_frame(roots[t], q[t], lock._leg_offsets)
         np.testing.assert_allclose(ankle, pos[t, :, 2], atol=1e-9)
         np.testing.assert_allclose(ball, pos[t, :, 3], atol=1e-9)
 

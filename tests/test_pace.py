@@ -1,4 +1,4 @@
-"""The style's pace (models/pace.py, motion/footlock.py ``Pace``): the table is what the
+"""The style's pace (models/pace.py, motion/footlock/ ``Pace``): the table is what the
 training clips measure, and a stream slowed to a style's pace covers ground at that pace
 while its planted feet stay planted, its strides shorten without a pop, and nothing moves
 where the restyle is not shown."""

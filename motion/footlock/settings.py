@@ -1,0 +1,141 @@
+"""What the foot lock does, per ``--feet`` and ``--pace``: ``ContactSettings``, the named locks
+(``FEET``) and the checks of the two options' names."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from ..errors import UserError
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """Thresholds in centimetres and centimetres per frame at 60 fps. Measured on the
+    Bandai walks: a planted foot moves 0.03-0.08 cm/frame, a swinging one 3-6."""
+
+    plant_height: float = 4.0  # ankle or ball at most this far above its floor height
+    plant_speed: float = 0.6  # ...and its slower joint moving less than this
+    release_height: float = 7.0  # let go above this
+    release_speed: float = 1.5  # ...or faster than this
+    floor_window: int = 240  # frames (4 s) over which the floor is the lowest ball height
+    # Frames over which a lock blends in before and out after a contact. It looks this far
+    # ahead: 4 fits serve's default (hop 4, delay 5) and restyle's (delay = hop = 4) alike,
+    # so both lock the same frames; a stream of less delay foresees the rest (``approach``).
+    ramp: int = 4
+    # Frames over which a lock lets go after a contact (None: the lock's ramp). This side
+    # needs no look-ahead, only the contacts already pushed, so it may be longer.
+    release: int | None = None
+    # Pelvis height: the low-pass time constant (frames; a triple pole, so the hips settle
+    # over ~3 tau) and the most the hips move (cm). 0 tau: no adjustment. Measured on
+    # held-out clips with the judge panel (models/checkpoints/MODEL_CARD.md): on the input's
+    # ankles, 2 frames let the hips carry the restyled legs' bend step by step (the previous
+    # pair default: 71.1 -> 81.9 % judged exhausted on the worst judge, walks 54 -> 78 %; timing
+    # sync 0.818 -> 0.815, pops and slide unchanged); 1 frame read 83.0 % but popped (2.6x
+    # the input's largest jerk). The stance keeps 8 (``FEET``).
+    pelvis_tau: float = 2.0
+    pelvis_cap: float = 12.0
+    # ...and the time constant once the body has left the floor (no foot locked: 11-24 % of
+    # a held-out run's frames, none of any other action's) within the last flight_memory
+    # frames (0.5 s, a run's stride and more). A run plants each foot for a few frames
+    # between flights, and hips that drop by each new contact's gap within 2 frames snapped
+    # the knee (a model trained with --lambda-action 0.25: 2.52x the input's largest jerk
+    # with 2, 1.19x with 8, on the same held-out run).
+    pelvis_flight_tau: float = 8.0
+    flight_memory: int = 30
+    # Stance: the most a planted foot stands beside the input's (cm; 0: on the input's
+    # own ankle) and how fast the offset may move while
+    # the foot is locked (cm/frame; a planted input foot moves 0.03-0.08, so this adds at
+    # most a third to its slide).
+    stance_cap: float = 0.0
+    stance_rate: float = 0.01
+    # ...and the foot's turn about the vertical against the input's (toes out or in):
+    # at most this many degrees, moving at most this fast while locked (0.04 degrees a
+    # frame moves the ball of a 15 cm foot 0.01 cm).
+    turn_cap: float = 30.0
+    turn_rate: float = 0.04
+    # A foot's heading is only as sure as its length on the floor (ankle to ball, cm): a
+    # foot pointing down (toe-off, a swing about to land) has none, and following it turned
+    # a landing foot by 54 degrees in one frame (a held-out walk). The turn follows a foot
+    # fully from turn_sure cm on the floor, not at all below turn_unsure, in between in part.
+    turn_unsure: float = 2.0
+    turn_sure: float = 6.0
+    # Pace (``Pace``): the output covers ground at the style's speed. Points (input speed,
+    # output speed) of the root's horizontal travel in cm/frame, joined by straight lines
+    # from (0, 0) and extended at the last point's ratio; () = the input's own pace (the
+    # root's horizontal path passes through). The input's speed is low-passed over
+    # pace_tau frames (about a stride), so a stride's own rhythm does not change the ratio.
+    pace: tuple[tuple[float, float], ...] = ()
+    pace_tau: float = 15.0
+    # ...and the share per frame by which a foot in the air catches up with the body's
+    # shift after its lock lets go (a planted foot keeps the shift it landed with).
+    carry_rate: float = 0.15
+
+
+# Where planted feet go (``--feet``). "input": on the input's own ankles, turned as the
+# input's; a pair model keeps it unless its checkpoint names another. "stance": beside
+# them, where the restyled legs stand, turned as restyled (the knees bend as restyled in
+# both). The multi-style model reads most as its targets so (78.5 % on the judges' mean
+# over six against 57.8 %), but for elderly and exhausted (its ``feet_of_style``). For the
+# pair default "input" reads better since its hips follow within 2 frames (88.1 % against
+# 75.4 % on the judges' mean, action 89.5 against 86.8 %), and while planted the stance
+# creeps 0.011-0.012 cm a frame in the standing actions against the input's 0.005
+# (2.2-2.6x). The stance's hips settle slower (8 frames): with 2 the
+# multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %) and popped more in
+# five styles of six, though active, elderly, exhausted and masculine gained 7-16 points.
+# "auto", the default, takes the model's own (``Restyler.feet``; figures in
+# models/checkpoints/MODEL_CARD.md).
+# The stance's cap: a foot's offset is taken where its lock starts to blend in, ``ramp``
+# frames before touch-down, while the restyled foot still swings, so a large one is mostly
+# swing: with 15 cm the multistyle model's knees popped 3.1-4.0x the input's largest jerk in
+# active, feminine, masculine and youthful walks and runs; 8 cm: 1.95-3.11x, every style read
+# as its target within a point of 15 cm's (5 cm: feminine -2.0). Following the restyled foot
+# until full contact instead popped more (6.6x, a feminine run): the offset then stops dead.
+# The stance lets go over 8 frames: its planted foot stands up to the cap from the input's
+# while the restyled swing foot is elsewhere again by lift-off, and over 4 frames the foot
+# jumped that gap (the multistyle model's held-out active walks: a toe's one-frame jerk 5x
+# the input's; active's jerk ratio 1.132 over held-out takes, 1.093 over 8 frames, youthful
+# 1.081 -> 1.056; for 4 points of active's style on the worst conv judge, the others within a
+# point or better: the model card's "The stance lets go over 8 frames"). The input lock keeps
+# 4: with 8 the pair default read exhausted 0.8 points less on its worst conv judge, where
+# it stands at the bar (its jerk was 1.008 already).
+FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=8.0, pelvis_tau=8.0, release=8)}
+AUTO_FEET = "auto"  # the model's own choice (its ``feet``), else "input"
+
+
+# ``--pace``: "style", the output covers ground at the target style's pace (``Pace``; the
+# restyler's ``pace()`` points, where it has them), or "input", the performer's own (the
+# root's horizontal path passes through). Style is the default: keeping the performer's
+# pace, the pair default read exhausted in 86.1 % of held-out windows on the worst judge,
+# runs 27 %; at the style's pace 92.1 %, runs 82 % (models/checkpoints/MODEL_CARD.md).
+PACE_CHOICES = ("style", "input")
+
+
+def check_feet(name: str) -> str:
+    """A ``--feet`` name, or one sentence naming the known ones (before any work)."""
+    if name not in (AUTO_FEET, *FEET):
+        raise UserError(f"--feet {name!r} is not known; use one of {', '.join((AUTO_FEET, *FEET))}")
+    return name
+
+
+def check_pace(name: str) -> str:
+    """A ``--pace`` name, or one sentence naming the known ones (before any work)."""
+    if name not in PACE_CHOICES:
+        raise UserError(f"--pace {name!r} is not known; use one of {', '.join(PACE_CHOICES)}")
+    return name
+
+
+def pace_of(restyler, pace: str = "style", weights=None) -> tuple:
+    """``ContactSettings.pace`` for ``--pace NAME`` with ``restyler`` (towards the style mix
+    ``weights``, where it takes one): () for the input's pace or a restyler without one."""
+    if pace != "style" or not hasattr(restyler, "pace"):
+        return ()
+    return tuple(restyler.pace(weights))
+
+
+def feet_for(name: str, restyler=None, pace: str = "style") -> ContactSettings:
+    """``--feet NAME`` and ``--pace`` (checked beforehand) for ``restyler``: "auto" takes
+    the model's own lock."""
+    if name == AUTO_FEET:
+        name = getattr(restyler, "feet", "input")
+    points = pace_of(restyler, pace)
+    return replace(FEET[name], pace=points) if points else FEET[name]
