@@ -6,7 +6,8 @@ trajectory is the input's (but for the pelvis height and the pace, ``pelvis`` an
 ``pace``): without a fix, a foot the performer keeps still on the floor drifts with the
 restyled hips and knees (the first shipped model slid planted feet by 1 cm per frame, 13x
 the input). This stage runs after the seam blender on every output frame, live and
-offline alike (``SeamBlender`` -> ``FootLock.apply``), so ``restyle`` and ``serve`` send the same frames.
+offline alike (``SeamBlender`` -> ``FootLock.apply``), so ``restyle`` and ``serve`` send
+the same frames.
 
 In short: ``FootLock.push`` finds each input frame's contacts (``contacts``), and
 ``FootLock.apply`` blends each planted leg of an output frame onto the input's foot by the
