@@ -29,8 +29,11 @@ def _unit(s: str) -> float:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .judges import DYNAMICS_PANEL, PANEL, RECURRENT_PANEL  # no torch at import time
+    for add in (_add_train, _add_tune_holds, _add_restyle, _add_eval):
+        add(sub)
 
+
+def _add_train(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("train", help="train a CycleGAN restyler between two styles of the Bandai dataset-2")
     p.add_argument("--style-a", default="normal", help="style A (default normal)")
     p.add_argument("--style-b", default="exhausted", help="style B (default exhausted)")
@@ -104,6 +107,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-progress", action="store_true", help="print one line per epoch instead of a bar")
     p.set_defaults(func=run_train)
 
+
+def _add_tune_holds(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("tune-holds", help="tune a trained pair model to hold a hand or the head still where the "
                                            "input holds it, changing nothing else it can help")
     p.add_argument("--model", default="normal2exhausted", help="the pair model to tune (a file or a shipped name)")
@@ -117,6 +122,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
     p.set_defaults(func=run_tune_holds)
 
+
+def _add_restyle(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("restyle", help="restyle a BVH clip with a trained model")
     p.add_argument("input", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True)
@@ -145,6 +152,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
     p.add_argument("--device", default="auto", help="where the model runs: auto (CUDA when present), cpu or cuda[:N]")
     p.set_defaults(func=run_restyle)
+
+
+def _add_eval(sub: argparse._SubParsersAction) -> None:
+    from .judges import DYNAMICS_PANEL, PANEL, RECURRENT_PANEL  # no torch at import time
 
     p = sub.add_parser("eval", help="judge a model on held-out files: style, action, FMD, jerk, foot slide, "
                                      "timing, seams, against the input and the baselines")
