@@ -377,32 +377,10 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     out.mkdir(parents=True, exist_ok=True)
     target = proposed.target_style
     target_k = styles.index(target)
-    real_target = np.concatenate(real[target])
-    target_train = training_motions(files, [target], per_style, cache_dir)
-    train_takes = [judge_windows(m.rotations, m.root_positions, skeleton) for m in target_train]
-    feats_target = judges.style_features(real_target)
-    target_labels = _window_labels(real[target], [actions.index(m.file.action) for m in held[target]])
-    feats_train = judges.style_features(np.concatenate(train_takes))
-    train_labels = _window_labels(train_takes, [actions.index(m.file.action) for m in target_train])
-    real_fmd = fmd_figures(feats_train, train_labels, feats_target, target_labels, actions)
-    fmd_floors = real_fmd["overall"]["fmd_judges"]
+    ref = _RealReference.of(target, source, files, actions, skeleton, judges, held, real, per_style, cache_dir)
+    fmd_floors = ref.fmd["overall"]["fmd_judges"]
     log(f"judges checked on held-out windows; FMD floor (real {target} train vs held-out) "
         f"{', '.join(f'{f:.3f}' for f in fmd_floors)} per judge ({time.perf_counter() - t0:.0f} s)")
-
-    # Real target-style motion against real source-style motion of the same action.
-    # (A take's own holds: real motion has no input to hold still against.)
-    real_jerk, real_hold, real_skate = {}, {}, {}
-    for a in actions:
-        pos = {s: [M.world_positions(m.rotations, m.root_positions, skeleton) for m in held[s] if m.file.action == a]
-               for s in (source, target)}
-        if pos[source] and pos[target]:
-            j = {s: np.concatenate([M.jerk(p) for p in pos[s]]) for s in pos}
-            gs, gt = M.group_means(j[source]), M.group_means(j[target])
-            real_jerk[a] = {g: gt[g] / max(gs[g], 1e-12) for g in gs}
-            h = {s: np.concatenate([M.hold_samples(p, M.held(p)) for p in pos[s]]) for s in pos}
-            real_hold[a] = _mean_ratio(h[target], h[source])
-            k = {s: np.concatenate([M.skate_samples(p) for p in pos[s]]) for s in pos}
-            real_skate[a] = _mean_ratio(k[target], k[source])
 
     clips = held[source]
     act_idx = [actions.index(m.file.action) for m in clips]
@@ -411,50 +389,10 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     outputs_for_plot: dict = {}
     for variant in build_variants(proposed, variants, posture, log, source):
         for setting, live, skip in SETTINGS:
-            held_first = half_rate_held(LIVE_SOURCE_FPS, hop) if live else 0
-            per_clip, preds, acts, short_acts, dyns, feats, ds, masks = [], [], [], [], [], [], [], []
-            for m in clips:
-                inp = m.rotations.astype(np.float64)
-                roots = m.root_positions.astype(np.float64)
-                out_roots = roots
-                if variant.restyle_words is None:
-                    res = inp
-                else:
-                    lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
-                    res, moved = restyle_rotations(inp, variant.restyle_words, hop, live=live,
-                                                   correction_tau=variant.correction_tau,
-                                                   start_restyled=variant.start_restyled,
-                                                   contacts=variant.contacts, held_first=held_first, **lock)
-                    out_roots = roots if moved is None else moved  # the pelvis height the lock set
-                mask = switch_mask(len(res), hop, live, held_first)[skip:]
-                inp, res, roots, out_roots = inp[skip:], res[skip:], roots[skip:], out_roots[skip:]
-                per_clip.append(_clip_measures(inp, res, roots, out_roots, skeleton))
-                w = judge_windows(res, out_roots, skeleton)
-                preds.append(judges.style_votes(w))
-                acts.append(judges.action_votes(judges.action_windows(res, out_roots, skeleton)))
-                short_acts.append(judges.short_action_votes(w))
-                dyns.append(judges.dynamics_votes(w))
-                feats.append(judges.style_features(w))
-                ds.append(frame_differences(res))
-                masks.append(mask)
-                if setting == "stream":
-                    outputs_for_plot.setdefault(variant.name, []).append((res, out_roots))
-            summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles, actions, dyns,
-                                             short_acts),
-                       "per_action": {}}
-            for a in sorted(set(act_idx)):
-                sel = [i for i, x in enumerate(act_idx) if x == a]
-                summary["per_action"][actions[a]] = _summarise([per_clip[i] for i in sel], [preds[i] for i in sel],
-                                                               [acts[i] for i in sel], [a] * len(sel), target_k, styles,
-                                                               actions, [dyns[i] for i in sel],
-                                                               [short_acts[i] for i in sel])
-            fmd = fmd_figures([np.concatenate(per_judge) for per_judge in zip(*feats)],
-                              _window_labels([f[0] for f in feats], act_idx), feats_target, target_labels, actions)
-            summary["overall"].update(fmd["overall"])
-            summary["overall"]["fmd"] = float(np.mean(fmd["overall"]["fmd_judges"]))
-            for a, gap in fmd["per_action"].items():
-                summary["per_action"][a].update(gap)
-            summary["overall"]["seam_ratio"] = seam_ratio(ds, masks)
+            summary, outputs = _judge_setting(variant, clips, live, skip, hop, skeleton, judges, ref, act_idx,
+                                              target_k, styles, actions)
+            if setting == "stream":
+                outputs_for_plot[variant.name] = outputs
             # The input's own figure on the same grid is not 1 in short clips (the seams
             # fall at the same times in every take): the goal is read relative to it.
             own = summary["overall"]["seam_ratio"]
@@ -466,7 +404,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
 
     windows = {a: o["windows"] for a, o in results["input"]["stream"]["per_action"].items()}
     ceiling = travel_ceiling(held[source], held[target], real[target], target_k, judges, skeleton, windows)
-    tempo = tempo_ceiling(held[source], held[target], target_k, judges, skeleton, feats_target, target_labels, actions,
+    tempo = tempo_ceiling(held[source], held[target], target_k, judges, skeleton, ref.features, ref.labels, actions,
                           windows)
 
     # The paper's plain words (hop 60, no blend) against the blend, for the model under test.
@@ -479,9 +417,9 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "judge_seeds": judges.seeds, "judge_panel": judges.describe(),
                "dynamics_judge_seeds": judges.dynamics_seeds,
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
-               "fmd_floor_parts": real_fmd,
-               "real_target_jerk_ratio": real_jerk, "real_target_hold_ratio": real_hold,
-               "real_target_skate_ratio": real_skate, "travel_ceiling": ceiling, "tempo_ceiling": tempo,
+               "fmd_floor_parts": ref.fmd,
+               "real_target_jerk_ratio": ref.jerk, "real_target_hold_ratio": ref.hold,
+               "real_target_skate_ratio": ref.skate, "travel_ceiling": ceiling, "tempo_ceiling": tempo,
                "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
                "torch_threads": _torch_threads()}
@@ -492,6 +430,94 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
     report = write_report(out / "report.md", metrics, plots)
     log(f"eval done in {metrics['seconds']:.0f} s")
     return report
+
+
+@dataclass
+class _RealReference:
+    """What a target's figures are read against, from real motion alone: the style judges'
+    features of the real held-out target windows (per judge) and their actions, FMD between
+    real training and held-out target windows (the floor), and the jerk, holds and skating
+    of real target-style clips over real source-style clips of the same action, per action
+    (a take's own holds: real motion has no input to hold still against)."""
+
+    features: list
+    labels: np.ndarray
+    fmd: dict
+    jerk: dict
+    hold: dict
+    skate: dict
+
+    @classmethod
+    def of(cls, target, source, files, actions, skeleton, judges, held, real, per_style, cache_dir) -> "_RealReference":
+        target_train = training_motions(files, [target], per_style, cache_dir)
+        train_takes = [judge_windows(m.rotations, m.root_positions, skeleton) for m in target_train]
+        features = judges.style_features(np.concatenate(real[target]))
+        labels = _window_labels(real[target], [actions.index(m.file.action) for m in held[target]])
+        train_labels = _window_labels(train_takes, [actions.index(m.file.action) for m in target_train])
+        fmd = fmd_figures(judges.style_features(np.concatenate(train_takes)), train_labels, features, labels, actions)
+        jerk, hold, skate = {}, {}, {}
+        for a in actions:
+            pos = {s: [M.world_positions(m.rotations, m.root_positions, skeleton) for m in held[s] if m.file.action == a]
+                   for s in (source, target)}
+            if pos[source] and pos[target]:
+                j = {s: np.concatenate([M.jerk(p) for p in pos[s]]) for s in pos}
+                gs, gt = M.group_means(j[source]), M.group_means(j[target])
+                jerk[a] = {g: gt[g] / max(gs[g], 1e-12) for g in gs}
+                h = {s: np.concatenate([M.hold_samples(p, M.held(p)) for p in pos[s]]) for s in pos}
+                hold[a] = _mean_ratio(h[target], h[source])
+                k = {s: np.concatenate([M.skate_samples(p) for p in pos[s]]) for s in pos}
+                skate[a] = _mean_ratio(k[target], k[source])
+        return cls(features, labels, fmd, jerk, hold, skate)
+
+
+def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: int, skeleton, judges, ref: _RealReference,
+                   act_idx: list[int], target_k: int, styles, actions) -> tuple[dict, list]:
+    """One variant's restyle of every clip in one setting (the running stream, or live from
+    a take's start), judged and measured: its summary (overall and per action, FMD against
+    the real target windows, the seam ratio) and the restyled (rotations, roots) per clip."""
+    held_first = half_rate_held(LIVE_SOURCE_FPS, hop) if live else 0
+    per_clip, preds, acts, short_acts, dyns, feats, ds, masks, outputs = [], [], [], [], [], [], [], [], []
+    for m in clips:
+        inp = m.rotations.astype(np.float64)
+        roots = m.root_positions.astype(np.float64)
+        out_roots = roots
+        if variant.restyle_words is None:
+            res = inp
+        else:
+            lock = dict(roots=roots, skeleton=skeleton) if variant.lock_feet else {}
+            res, moved = restyle_rotations(inp, variant.restyle_words, hop, live=live,
+                                           correction_tau=variant.correction_tau,
+                                           start_restyled=variant.start_restyled,
+                                           contacts=variant.contacts, held_first=held_first, **lock)
+            out_roots = roots if moved is None else moved  # the pelvis height the lock set
+        mask = switch_mask(len(res), hop, live, held_first)[skip:]
+        inp, res, roots, out_roots = inp[skip:], res[skip:], roots[skip:], out_roots[skip:]
+        per_clip.append(_clip_measures(inp, res, roots, out_roots, skeleton))
+        w = judge_windows(res, out_roots, skeleton)
+        preds.append(judges.style_votes(w))
+        acts.append(judges.action_votes(judges.action_windows(res, out_roots, skeleton)))
+        short_acts.append(judges.short_action_votes(w))
+        dyns.append(judges.dynamics_votes(w))
+        feats.append(judges.style_features(w))
+        ds.append(frame_differences(res))
+        masks.append(mask)
+        outputs.append((res, out_roots))
+    summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles, actions, dyns, short_acts),
+               "per_action": {}}
+    for a in sorted(set(act_idx)):
+        sel = [i for i, x in enumerate(act_idx) if x == a]
+        summary["per_action"][actions[a]] = _summarise([per_clip[i] for i in sel], [preds[i] for i in sel],
+                                                       [acts[i] for i in sel], [a] * len(sel), target_k, styles,
+                                                       actions, [dyns[i] for i in sel],
+                                                       [short_acts[i] for i in sel])
+    fmd = fmd_figures([np.concatenate(per_judge) for per_judge in zip(*feats)],
+                      _window_labels([f[0] for f in feats], act_idx), ref.features, ref.labels, actions)
+    summary["overall"].update(fmd["overall"])
+    summary["overall"]["fmd"] = float(np.mean(fmd["overall"]["fmd_judges"]))
+    for a, gap in fmd["per_action"].items():
+        summary["per_action"][a].update(gap)
+    summary["overall"]["seam_ratio"] = seam_ratio(ds, masks)
+    return summary, outputs
 
 
 def fmd_figures(feats: list[np.ndarray], labels: np.ndarray, feats_target: list[np.ndarray],
