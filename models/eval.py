@@ -457,8 +457,8 @@ class _RealReference:
         fmd = fmd_figures(judges.style_features(np.concatenate(train_takes)), train_labels, features, labels, actions)
         jerk, hold, skate = {}, {}, {}
         for a in actions:
-            pos = {s: [M.world_positions(m.rotations, m.root_positions, skeleton) for m in held[s] if m.file.action == a]
-                   for s in (source, target)}
+            pos = {s: [M.world_positions(m.rotations, m.root_positions, skeleton)
+                       for m in held[s] if m.file.action == a] for s in (source, target)}
             if pos[source] and pos[target]:
                 j = {s: np.concatenate([M.jerk(p) for p in pos[s]]) for s in pos}
                 gs, gt = M.group_means(j[source]), M.group_means(j[target])
@@ -470,8 +470,8 @@ class _RealReference:
         return cls(features, labels, fmd, jerk, hold, skate)
 
 
-def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: int, skeleton, judges, ref: _RealReference,
-                   act_idx: list[int], target_k: int, styles, actions) -> tuple[dict, list]:
+def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: int, skeleton, judges,
+                   ref: _RealReference, act_idx: list[int], target_k: int, styles, actions) -> tuple[dict, list]:
     """One variant's restyle of every clip in one setting (the running stream, or live from
     a take's start), judged and measured: its summary (overall and per action, FMD against
     the real target windows, the seam ratio) and the restyled (rotations, roots) per clip."""

@@ -131,17 +131,38 @@ def goals_met(overall: dict, floors: list[float]) -> dict[str, bool]:
 
 
 def write_report(path: Path, m: dict, plots: list[str]) -> Path:
-    src, tgt, res = m["source"], m["target"], m["results"]
-    lines = [f"# stylecast evaluation: {src} -> {tgt}", "",
-             f"Model under test: `{m['model']}`. Held-out files (split by file, never trained on): "
-             + ", ".join(f"{s} {n}" for s, n in m["held_out_files"].items())
-             + f". Every {src} held-out clip is restyled by each variant through the stream code of `restyle` "
-             f"and `serve` (hop {m['hop']}, seam blender, foot lock). `stream` = what `serve` sends for a stream that "
-             "has been running, which is what `restyle` writes (the clip pre-rolled with its own mirrored motion); "
-             "`live-from-start` = `serve` started on the clip (its first frame shown restyled, or faded in where "
-             "the model asks, the first words holding the clip's first frame before it: in these 2-9 s takes a "
-             "good part of a clip). The goals are read on `stream`.", "",
-             "## The judges", "",
+    """The report of one target (``eval``'s ``metrics.json`` as ``m``) with ``plots`` under it."""
+    floors = fmd_floors(m)
+    res = m["results"]
+    actions = list(next(iter(res.values()))["stream"]["per_action"])
+    lines = _intro_lines(m) + _judges_lines(m, floors)
+    for setting in ("stream", "live-from-start"):
+        lines += _goals_lines(m, setting, floors) + _variants_lines(res, setting, floors)
+    lines += _judged_as_lines(res) + _per_action_lines(res, actions) + _action_taken_lines(res, actions)
+    lines += _real_motion_lines(m) + travel_ceiling_lines(m) + tempo_ceiling_lines(m) + fmd_lines(m)
+    lines += _seam_lines(m) + [f"![{p}]({p})" for p in plots]
+    lines += ["", f"Evaluation took {m['seconds']:.0f} s. Raw numbers: `metrics.json`.", ""]
+    path.write_text("\n".join(lines))
+    return path
+
+
+def _intro_lines(m: dict) -> list[str]:
+    src = m["source"]
+    return [f"# stylecast evaluation: {src} -> {m['target']}", "",
+            f"Model under test: `{m['model']}`. Held-out files (split by file, never trained on): "
+            + ", ".join(f"{s} {n}" for s, n in m["held_out_files"].items())
+            + f". Every {src} held-out clip is restyled by each variant through the stream code of `restyle` "
+            f"and `serve` (hop {m['hop']}, seam blender, foot lock). `stream` = what `serve` sends for a stream that "
+            "has been running, which is what `restyle` writes (the clip pre-rolled with its own mirrored motion); "
+            "`live-from-start` = `serve` started on the clip (its first frame shown restyled, or faded in where "
+            "the model asks, the first words holding the clip's first frame before it: in these 2-9 s takes a "
+            "good part of a clip). The goals are read on `stream`.", ""]
+
+
+def _judges_lines(m: dict, floors: list[float]) -> list[str]:
+    """The panel, its accuracy on real held-out windows and the FMD floor."""
+    tgt = m["target"]
+    lines = ["## The judges", "",
              f"A panel of {_panel_size(m)} 7-style and as many 10-action classifiers over world joint positions and "
              "velocities, in metres, relative to the hips at each window's centre and facing +Z (design and seed: "
              f"{_panel(m)}; conv: 1-D convolutions over time, gru: a bidirectional GRU over the frames), trained on "
@@ -162,72 +183,93 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                      f"{_range(_judges(j, 'action_accuracy'), _pct)} | "
                      f"{_range(j.get('short_action_accuracy_judges', []), _pct)} | "
                      f"{_range(j.get('dynamics_accuracy_judges', []), _pct)} |")
-    floors = fmd_floors(m)
-    lines += ["", f"FMD floor (real {tgt} training windows vs real {tgt} held-out windows, each style judge's "
-              f"pooled features, in panel order): **{', '.join(_num(f) for f in floors)}**. The judges' feature "
-              "spaces have their own scales (a GRU's states are bounded), so FMD is shown over each judge's own "
-              "floor: the panel's mean ratio (the best and worst judge's).", ""]
-    for setting in ("stream", "live-from-start"):
-        prop = res["proposed"][setting]["overall"]
-        met = goals_met(prop, floors)
-        values = goal_values(prop, floors)
-        lines += ["", f"## Goals, model under test, {setting}", "", "| measure | value | goal | met |", "|---|---|---|---|"]
-        for name, key, _, shown in GOALS:
-            if key not in values:
-                continue
-            v = values[key]
-            lines.append(f"| {name} | {_pct(v) if shown.endswith('%') else _num(v)} | {shown} | "
-                         f"{'yes' if met[key] else '**no**'} |")
-        ceiling = m.get("travel_ceiling", {}).get("overall", {}).get("source_travel_judges")
-        if setting == "stream" and ceiling:
-            lines += ["", f"Real {tgt} clips at the {src} clips' pace read {_pct(min(ceiling))} as {tgt} on the worst "
-                      "judge: the most a restyle that keeps the input's travel (`--pace input`) can be expected to read (see "
-                      "\"The ceiling of a restyle that keeps the input's travel\")."]
-        tempo = m.get("tempo_ceiling", {}).get("overall", {})
-        if setting == "stream" and tempo.get("fmd_judges"):
-            worst = max(over_floors(tempo["fmd_judges"], floors))
-            dynamics = min(tempo["dynamics_judges"] or [np.nan])
-            lines += ["", f"Real {tgt} clips played at the {src} clips' tempo lie **{_ratio(worst)}** the floor "
-                      f"from the recorded ones on the worst judge's FMD, and read {_pct(dynamics)} as the target to "
-                      "the worst dynamics judge: what a restyle in the performer's own time can be expected to "
-                      "reach on those two (see \"The ceiling of a restyle that keeps the performer's timing\")."]
-        lines += ["", f"## All variants, {setting} (all actions)", "",
-                  "| variant | judged target | action kept (2 s) | action kept (1 s) | FMD / floor | jerk all | "
-                  "jerk hands | jerk feet | largest one-frame jerk / input's, worst clip (median) | "
-                  "slide cm/frame (ratio) | skating, own contacts, cm/frame (ratio) | "
-                  "held hands and head cm/frame (ratio) | feet below floor mean / p99 cm | "
-                  "elbows and knees off hinge, p99 deg | sync | seam (/ input's) | judged target, dynamics |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-        for name, r in res.items():
-            o = r[setting]["overall"]
-            jr = o["jerk_ratio"]
-            lines.append(f"| {name} | {_range(_judges(o, 'judged_target'), _pct)} | "
-                         f"{_range(_judges(o, 'action_kept'), _pct)} | "
-                         f"{_range(o.get('action_kept_short_judges', []), _pct)} | "
-                         f"{_range(fmd_ratios(o, floors), _ratio)} | "
-                         f"{_num(jr['all'], 2)} | {_num(jr['hands'], 2)} | {_num(jr['feet'], 2)} | "
-                         f"{_num(o.get('peak_jerk_ratio'), 2)} ({_num(o.get('peak_jerk_ratio_median'), 2)}) | "
-                         f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
-                         f"{_num(o.get('skate_cm_per_frame'), 3)} ({_num(o.get('skate_ratio'), 2)}) | "
-                         f"{_num(o.get('hold_cm_per_frame'), 3)} ({_num(o.get('hold_ratio'), 2)}) | "
-                         f"{_num(o['floor_penetration_cm'], 2)} / {_num(o['floor_penetration_p99_cm'], 1)} | "
-                         f"{_num(o.get('off_hinge_p99_deg', float('nan')), 2)} | "
-                         f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
-                         f"({_num(o['seam_ratio_relative'], 3)}) | {_range(o.get('judged_target_dynamics_judges', []), _pct)} |")
-    lines += ["", "Variants: " + "; ".join(f"`{k}`: {v['note']}" for k, v in res.items()) + ".", "",
-              "## What the windows were taken for (stream)", "",
-              "| variant | " + " | ".join(next(iter(res.values()))["stream"]["overall"]["judged_as"]) + " |",
-              "|---|" + "---|" * len(next(iter(res.values()))["stream"]["overall"]["judged_as"])]
+    return lines + ["", f"FMD floor (real {tgt} training windows vs real {tgt} held-out windows, each style judge's "
+                    f"pooled features, in panel order): **{', '.join(_num(f) for f in floors)}**. The judges' feature "
+                    "spaces have their own scales (a GRU's states are bounded), so FMD is shown over each judge's own "
+                    "floor: the panel's mean ratio (the best and worst judge's).", ""]
+
+
+def _goals_lines(m: dict, setting: str, floors: list[float]) -> list[str]:
+    """The model under test against each goal in one setting, and (stream) the ceilings' headlines."""
+    src, tgt = m["source"], m["target"]
+    prop = m["results"]["proposed"][setting]["overall"]
+    met = goals_met(prop, floors)
+    values = goal_values(prop, floors)
+    lines = ["", f"## Goals, model under test, {setting}", "", "| measure | value | goal | met |", "|---|---|---|---|"]
+    for name, key, _, shown in GOALS:
+        if key not in values:
+            continue
+        v = values[key]
+        lines.append(f"| {name} | {_pct(v) if shown.endswith('%') else _num(v)} | {shown} | "
+                     f"{'yes' if met[key] else '**no**'} |")
+    ceiling = m.get("travel_ceiling", {}).get("overall", {}).get("source_travel_judges")
+    if setting == "stream" and ceiling:
+        lines += ["", f"Real {tgt} clips at the {src} clips' pace read {_pct(min(ceiling))} as {tgt} on the worst "
+                  "judge: the most a restyle that keeps the input's travel (`--pace input`) can be expected to read (see "
+                  "\"The ceiling of a restyle that keeps the input's travel\")."]
+    tempo = m.get("tempo_ceiling", {}).get("overall", {})
+    if setting == "stream" and tempo.get("fmd_judges"):
+        worst = max(over_floors(tempo["fmd_judges"], floors))
+        dynamics = min(tempo["dynamics_judges"] or [np.nan])
+        lines += ["", f"Real {tgt} clips played at the {src} clips' tempo lie **{_ratio(worst)}** the floor "
+                  f"from the recorded ones on the worst judge's FMD, and read {_pct(dynamics)} as the target to "
+                  "the worst dynamics judge: what a restyle in the performer's own time can be expected to "
+                  "reach on those two (see \"The ceiling of a restyle that keeps the performer's timing\")."]
+    return lines
+
+
+def _variants_lines(res: dict, setting: str, floors: list[float]) -> list[str]:
+    """Every variant's figures over all actions in one setting."""
+    lines = ["", f"## All variants, {setting} (all actions)", "",
+             "| variant | judged target | action kept (2 s) | action kept (1 s) | FMD / floor | jerk all | "
+             "jerk hands | jerk feet | largest one-frame jerk / input's, worst clip (median) | "
+             "slide cm/frame (ratio) | skating, own contacts, cm/frame (ratio) | "
+             "held hands and head cm/frame (ratio) | feet below floor mean / p99 cm | "
+             "elbows and knees off hinge, p99 deg | sync | seam (/ input's) | judged target, dynamics |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name, r in res.items():
+        o = r[setting]["overall"]
+        jr = o["jerk_ratio"]
+        lines.append(f"| {name} | {_range(_judges(o, 'judged_target'), _pct)} | "
+                     f"{_range(_judges(o, 'action_kept'), _pct)} | "
+                     f"{_range(o.get('action_kept_short_judges', []), _pct)} | "
+                     f"{_range(fmd_ratios(o, floors), _ratio)} | "
+                     f"{_num(jr['all'], 2)} | {_num(jr['hands'], 2)} | {_num(jr['feet'], 2)} | "
+                     f"{_num(o.get('peak_jerk_ratio'), 2)} ({_num(o.get('peak_jerk_ratio_median'), 2)}) | "
+                     f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
+                     f"{_num(o.get('skate_cm_per_frame'), 3)} ({_num(o.get('skate_ratio'), 2)}) | "
+                     f"{_num(o.get('hold_cm_per_frame'), 3)} ({_num(o.get('hold_ratio'), 2)}) | "
+                     f"{_num(o['floor_penetration_cm'], 2)} / {_num(o['floor_penetration_p99_cm'], 1)} | "
+                     f"{_num(o.get('off_hinge_p99_deg', float('nan')), 2)} | "
+                     f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
+                     f"({_num(o['seam_ratio_relative'], 3)}) | {_range(o.get('judged_target_dynamics_judges', []), _pct)} |")
+    return lines
+
+
+def _judged_as_lines(res: dict) -> list[str]:
+    """The variants' notes, and what the style judges took each variant's windows for."""
+    styles = next(iter(res.values()))["stream"]["overall"]["judged_as"]
+    lines = ["", "Variants: " + "; ".join(f"`{k}`: {v['note']}" for k, v in res.items()) + ".", "",
+             "## What the windows were taken for (stream)", "",
+             "| variant | " + " | ".join(styles) + " |", "|---|" + "---|" * len(styles)]
     for name, r in res.items():
         lines.append(f"| {name} | " + " | ".join(_pct(v) for v in r["stream"]["overall"]["judged_as"].values()) + " |")
-    actions = list(next(iter(res.values()))["stream"]["per_action"])
-    for title, key, fmt in (("judged target", "judged_target", _pct), ("action kept (2 s)", "action_kept", _pct),
-                            ("action kept (1 s)", "action_kept_short", _pct),
-                            ("jerk ratio, all joints", None, lambda v: _num(v, 2)),
-                            ("planted-foot slide ratio", "slide_ratio", lambda v: _num(v, 2)),
-                            ("skating on the output's own contacts, ratio", "skate_ratio", lambda v: _num(v, 2)),
-                            ("held hands and head, speed ratio", "hold_ratio", lambda v: _num(v, 2)),
-                            ("timing sync", "timing_sync", lambda v: _num(v, 3))):
+    return lines
+
+
+# The per-action tables: title, the per-action figure's key (None: the jerk ratio of all joints), format
+PER_ACTION = (("judged target", "judged_target", _pct), ("action kept (2 s)", "action_kept", _pct),
+              ("action kept (1 s)", "action_kept_short", _pct),
+              ("jerk ratio, all joints", None, lambda v: _num(v, 2)),
+              ("planted-foot slide ratio", "slide_ratio", lambda v: _num(v, 2)),
+              ("skating on the output's own contacts, ratio", "skate_ratio", lambda v: _num(v, 2)),
+              ("held hands and head, speed ratio", "hold_ratio", lambda v: _num(v, 2)),
+              ("timing sync", "timing_sync", lambda v: _num(v, 3)))
+
+
+def _per_action_lines(res: dict, actions: list[str]) -> list[str]:
+    lines = []
+    for title, key, fmt in PER_ACTION:
         lines += ["", f"## Per action, stream: {title}", "", "| variant | " + " | ".join(actions) + " |",
                   "|---|" + "---|" * len(actions)]
         for name, r in res.items():
@@ -236,36 +278,45 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
                 o = r["stream"]["per_action"][a]
                 cells.append(fmt(o["jerk_ratio"]["all"] if key is None else o.get(key)))
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _action_taken_lines(res: dict, actions: list[str]) -> list[str]:
+    """The action judges' confusion rows, the input's and the model's."""
+    lines = []
     for name in ("input", "proposed"):
         lines += ["", f"## What the action judges took each action's 2 s windows for, stream, `{name}`", "",
                   "| action | " + " | ".join(actions) + " |", "|---|" + "---|" * len(actions)]
         for a in actions:
             row = res[name]["stream"]["per_action"][a].get("action_taken_as", {})
             lines.append(f"| {a} | " + " | ".join(_pct(row[b]) if b in row else "-" for b in actions) + " |")
+    return lines
+
+
+def _real_motion_lines(m: dict) -> list[str]:
+    """Real target-style clips over real source-style clips of the same action."""
     holds = m.get("real_target_hold_ratio", {})  # absent from reports before the hold measure
     skates = m.get("real_target_skate_ratio", {})  # ...and the skating measure
-    lines += ["", f"## Real motion: jerk (and holds, skating) of real {tgt} clips over real {src} clips of the same "
-              "action", "",
-              "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else "")
-              + (" skating on own contacts |" if skates else ""),
-              "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "")]
+    lines = ["", f"## Real motion: jerk (and holds, skating) of real {m['target']} clips over real {m['source']} "
+             "clips of the same action", "",
+             "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else "")
+             + (" skating on own contacts |" if skates else ""),
+             "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "")]
     for a, g in m["real_target_jerk_ratio"].items():
         lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |"
                      + (f" {_num(holds.get(a), 2)} |" if holds else "")
                      + (f" {_num(skates.get(a), 2)} |" if skates else ""))
-    lines += travel_ceiling_lines(m)
-    lines += tempo_ceiling_lines(m)
-    lines += fmd_lines(m)
-    lines += ["", "## Seams", "",
-              f"Seam ratio of the model under test as plain 60-frame words (the paper's setting, no blend): "
-              f"{_num(m['plain_words_seam_ratio'])}; blended (above): "
-              f"{_num(res['proposed']['stream']['overall']['seam_ratio'])} stream, "
-              f"{_num(res['proposed']['live-from-start']['overall']['seam_ratio'])} live from the start.", "",
-              "## Motion", ""]
-    lines += [f"![{p}]({p})" for p in plots]
-    lines += ["", f"Evaluation took {m['seconds']:.0f} s. Raw numbers: `metrics.json`.", ""]
-    path.write_text("\n".join(lines))
-    return path
+    return lines
+
+
+def _seam_lines(m: dict) -> list[str]:
+    overall = {s: m["results"]["proposed"][s]["overall"] for s in ("stream", "live-from-start")}
+    return ["", "## Seams", "",
+            f"Seam ratio of the model under test as plain 60-frame words (the paper's setting, no blend): "
+            f"{_num(m['plain_words_seam_ratio'])}; blended (above): "
+            f"{_num(overall['stream']['seam_ratio'])} stream, "
+            f"{_num(overall['live-from-start']['seam_ratio'])} live from the start.", "",
+            "## Motion", ""]
 
 
 def fmd_lines(m: dict) -> list[str]:
