@@ -71,7 +71,6 @@ class History:
         self._count = len(kept)
 
 
-
 def lock_kernel(ramp: int, release: int, back: int) -> np.ndarray:
     """The lock weight a contact gives the frames around it, over ``back`` frames before one
     (zero beyond ``release``) and ``ramp`` after it, from past to future: a smoothstep of a
@@ -162,7 +161,6 @@ def plant_or_release(height, speed, plant_height, plant_speed, release_height, r
     """The contact test's events per frame and foot: a foot low and still plants, one high
     or fast lets go (``ContactSettings``; thresholds scalars or one per row)."""
     return (height < plant_height) & (speed < plant_speed), (height > release_height) | (speed > release_speed)
-
 
 
 def frame_speeds(positions: np.ndarray) -> np.ndarray:

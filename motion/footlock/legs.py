@@ -186,4 +186,3 @@ def feet_of_one_frame(root, rotations, leg_offsets):
         ankles.append(joints[2])
         balls.append(joints[3])
     return ankles, balls
-

@@ -303,7 +303,6 @@ def push_frames(rows: list) -> None:
                 lock._first_frame_takes(planted)
 
 
-
 def _contacts_of_locks(locks: list[FootLock], ankles: np.ndarray, balls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One input frame of each of many locks (each lock once), its ankles and balls (P, 2,
     3) -> contacts (P, 2) and floor heights (P,), each lock's state carried on as
@@ -371,5 +370,3 @@ def plan_locks(items: list) -> list["LockJob"]:
                     np.asarray(inputs, dtype=np.float64)[None], np.asarray(outputs, dtype=np.float64)[None],
                     weights[k:k + 1], down[k:k + 1], pushed[k:k + 1, FLOOR_COLUMN], mix, own=own[k:k + 1])
             for k, (lock, t, root, inputs, outputs, mix) in enumerate(items)]
-
-

@@ -144,4 +144,3 @@ class Pace:
                       for (fx, fz), w in zip(feet, (left, right))]
         self._shift = [sx + step_x, sz + step_z]
         return self._shift, self._feet
-

@@ -73,4 +73,3 @@ class PelvisHeight:
         x = min(max(self._held, -self.cap), self.cap)
         weight = self._weight.step(float(self._since_flight < self.flight_memory))
         return (1.0 - weight) * self._ground.step(x) + weight * self._flight.step(x)
-

@@ -309,4 +309,3 @@ def _soft_floor(height: np.ndarray, floor: np.ndarray, own: np.ndarray) -> np.nd
     u = np.clip((height - floor) / FLOOR_MARGIN, -1.0, 1.0)
     eased = np.where(height - floor >= FLOOR_MARGIN, height, floor + FLOOR_MARGIN * (u + 1.0) ** 2 / 4.0)
     return np.where(height >= own, height, np.minimum(eased, own))
-

@@ -144,4 +144,3 @@ def _heading(v: np.ndarray) -> np.ndarray:
 def _floor_length(v: np.ndarray) -> np.ndarray:
     """(..., 3) -> the length of v's floor part (the vertical is y)."""
     return np.hypot(v[..., 0], v[..., 2])
-
