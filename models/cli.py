@@ -28,6 +28,14 @@ def _unit(s: str) -> float:
     return v
 
 
+def _add_data_options(p: argparse.ArgumentParser) -> None:
+    """The options of every command that reads the dataset: where it is, the decoded-clip
+    cache and torch's CPU threads."""
+    p.add_argument("--data", type=Path, help="the Bandai dataset-2 'data' folder (default ../shared/...)")
+    p.add_argument("--cache", type=Path, help="cache folder for decoded clips (default ~/.cache/stylecast)")
+    p.add_argument("--threads", type=_positive_int, help="torch CPU threads (default: torch's choice)")
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     for add in (_add_train, _add_tune_holds, _add_restyle, _add_eval):
         add(sub)
@@ -101,9 +109,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last epoch")
     p.add_argument("--max-words", type=_positive_int, help="use at most N training words per style (tiny CI runs)")
     p.add_argument("--device", default="auto", help="auto (CUDA when present), cpu or cuda[:N]")
-    p.add_argument("--threads", type=_positive_int, help="torch CPU threads (default: torch's choice)")
-    p.add_argument("--data", type=Path, help="the Bandai dataset-2 'data' folder (default ../shared/...)")
-    p.add_argument("--cache", type=Path, help="cache folder for decoded clips (default ~/.cache/stylecast)")
+    _add_data_options(p)
     p.add_argument("--no-progress", action="store_true", help="print one line per epoch instead of a bar")
     p.set_defaults(func=run_train)
 
@@ -117,9 +123,7 @@ def _add_tune_holds(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--distil", type=float, help="weight of the distillation to the model as it was (default 100)")
     p.add_argument("--epochs", type=_positive_int, help="passes over each style's training words (default 10)")
     p.add_argument("--seed", type=int, default=3)
-    p.add_argument("--data", type=Path)
-    p.add_argument("--cache", type=Path)
-    p.add_argument("--threads", type=_positive_int, help="torch CPU threads")
+    _add_data_options(p)
     p.set_defaults(func=run_tune_holds)
 
 
@@ -172,9 +176,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="report folder (report.md, plots, metrics.json)")
     p.add_argument("--max-files", type=_positive_int, help="evaluate on at most N held-out files per style")
     p.add_argument("--hop", type=_positive_int, help="hop of the restyle (default: serve's)")
-    p.add_argument("--data", type=Path)
-    p.add_argument("--cache", type=Path)
-    p.add_argument("--threads", type=_positive_int)
+    _add_data_options(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the first judge of each kind (the others: seed+1, ...)")
     p.add_argument("--judges", type=_positive_int, default=PANEL,
                    help=f"convolutional judges of each kind in the panel (default {PANEL}); the goals are read on "
