@@ -46,8 +46,8 @@ from .multistyle import MultiStyleConfig, MultiStyleGAN
 from .networks import count_parameters, to_channels
 from .representation import get_representation
 from .styles import STYLES
-from .train import (TrainConfig, finish, read_train_state, run_epochs, shared_metadata, write_models,
-                    write_train_state)
+from .epoch_loop import finish, read_train_state, run_epochs, write_models, write_train_state
+from .train import TrainConfig, shared_metadata
 
 KIND = "multistyle"
 GENERATOR_PREFIX = "G."
