@@ -6,7 +6,7 @@
    path (``vmc_out.FrameEncoder``: template + one float32 scatter) against python-osc's
    builders producing the same bytes (``encode_frame_reference``), bundled and not.
 2. Decode: microseconds per frame for the strict OSC decoder alone (``osc_packets.decode``)
-   and for ``vmc_in.VmcParser.feed`` (decoder, frame assembly, Unity -> internal
+   and for ``vmc_parse.VmcParser.feed`` (decoder, frame assembly, Unity -> internal
    conversion), both against python-osc's parser alone (OscBundle/OscMessage + params).
 3. Send: frames per second through ``VmcSender.send_frame`` over loopback UDP to 1 and
    4 receivers, each drained by a separate process that counts what arrived, so
@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # a checkout witho
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 from stylecast.drivers.vmc.osc_packets import decode  # noqa: E402
-from stylecast.drivers.vmc.vmc_in import VmcParser  # noqa: E402
+from stylecast.drivers.vmc.vmc_parse import VmcParser  # noqa: E402
 from stylecast.drivers.vmc.vmc_out import FrameEncoder, VmcSender, encode_frame_reference  # noqa: E402
 from stylecast.motion.humanoid import humanoid_skeleton_default  # noqa: E402
 

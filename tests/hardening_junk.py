@@ -14,6 +14,7 @@ then check with an independent parser.
 from __future__ import annotations
 
 import struct
+from collections import Counter
 
 import numpy as np
 
@@ -208,14 +209,14 @@ _VMC_CONTENT = ("wrong_type", "missing_args", "non_finite", "bad_quaternion", "u
                 "ignored_bone", "too_many_performers")
 
 
-def single_reason_junk(kind: str, n: int, seed: int = 0) -> tuple[list[bytes], "Counter"]:
+def single_reason_junk(kind: str, n: int, seed: int = 0) -> tuple[list[bytes], Counter]:
     """``n`` junk datagrams that the VMC parser (kind "vmc") or the control port (kind
     "control") rejects with exactly one counted reason and no message used, so that
     live "reasons counted == datagrams read" is an exact check; and the expected reasons."""
     from collections import Counter
 
     from stylecast.daemon.control import ControlServer
-    from stylecast.drivers.vmc.vmc_in import VmcParser
+    from stylecast.drivers.vmc.vmc_parse import VmcParser
 
     gen = JunkGenerator(vmc_seeds() if kind == "vmc" else control_seeds(("p0",)), seed=seed, kind=kind)
     out: list[bytes] = []
@@ -315,7 +316,7 @@ def vmc_frame_receiver(socks, duration, ready, results) -> None:
     import select
     import time
 
-    from stylecast.drivers.vmc.vmc_in import VmcParser
+    from stylecast.drivers.vmc.vmc_parse import VmcParser
 
     ports = [s.getsockname()[1] for s in socks]
     parsers = [VmcParser(f"out{p}") for p in ports]

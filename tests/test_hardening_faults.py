@@ -39,7 +39,7 @@ from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.daemon.status import status_messages
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.drivers.sources import open_source
-from stylecast.drivers.vmc.vmc_in import VmcParser
+from stylecast.drivers.vmc.vmc_parse import VmcParser
 from stylecast.drivers.vmc.vmc_out import encode_frame
 from stylecast.motion import rotations as rot
 from stylecast.motion.smoothing import CORRECTION_TAU

@@ -35,10 +35,9 @@ from stylecast.daemon.config import DaemonConfig
 from stylecast.daemon.control import ControlServer, parse_command
 from stylecast.daemon.engine import Daemon
 from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
-from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.drivers.vmc.osc_packets import decode, encode_message
 from stylecast.drivers.sources import Source, open_source
-from stylecast.drivers.vmc.vmc_in import VmcParser
+from stylecast.drivers.vmc.vmc_parse import VmcParser
 from stylecast.drivers.vmc.vmc_out import encode_frame
 from stylecast.motion.bvh import write_bvh
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default

@@ -1,4 +1,4 @@
-"""drivers/vmc/vmc_in.py: parsing byte literals, framing rules, robustness, real loopback."""
+"""drivers/vmc/vmc_parse.py and vmc_in.py: parsing byte literals, framing rules, robustness, real loopback."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ from pythonosc.osc_message_builder import OscMessageBuilder
 from scipy.spatial.transform import Rotation
 
 from stylecast.drivers.vmc.osc_packets import decode, encode_bundle, encode_message, pack_datagrams
-from stylecast.drivers.vmc.vmc_in import TrackerSample, VmcParser, VmcReceiver
+from stylecast.drivers.vmc.vmc_in import VmcReceiver
+from stylecast.drivers.vmc.vmc_parse import TrackerSample, VmcParser
 from stylecast.drivers.vmc.vmc_out import VmcSender, encode_frame, encode_trackers
 from stylecast.motion import rotations as rot
 from stylecast.motion.errors import UserError

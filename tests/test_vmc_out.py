@@ -174,7 +174,7 @@ def test_many_performers_sent_in_one_call_send_the_bytes_each_sends_alone():
 
 
 def test_trackers_are_encoded_and_bundled():
-    from stylecast.drivers.vmc.vmc_in import TrackerSample
+    from stylecast.drivers.vmc.vmc_parse import TrackerSample
 
     samples = [TrackerSample("tra", f"T{i}", np.array([10.0 * i, 100.0, 0.0]), np.array([0, 0, 0, 1.0]))
                for i in range(30)]

@@ -1,6 +1,6 @@
 """VMC in: the drivers' parser and receiver feed the performer table, one thread per port.
 
-The viewer is a marionette like any other: it uses ``drivers.vmc.vmc_in`` (the same parser the
+The viewer is a marionette like any other: it uses ``drivers.vmc.vmc_parse`` (the same parser the
 daemon uses for live input, so both agree on Unity space, framing and what is ignored)
 and never the daemon itself. Each listening port has a role (the main ports carry the
 restyled stream, ``--input-port`` the daemon's copy of the unrestyled input) and, when
@@ -15,7 +15,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from stylecast.drivers.vmc.vmc_in import VmcFrame, VmcParser, VmcReceiver
+from stylecast.drivers.vmc.vmc_in import VmcReceiver
+from stylecast.drivers.vmc.vmc_parse import VmcFrame, VmcParser
 from stylecast.motion.humanoid import humanoid_skeleton_default
 
 from .performers import PerformerTable

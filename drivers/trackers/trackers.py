@@ -3,7 +3,7 @@
 A tracker is a rigid body reported as a position and an orientation in the internal space
 of ``stylecast.motion.rotations`` (right-handed, Y up, performer facing +Z, left is +X,
 centimetres, quaternions x, y, z, w). Serial trackers (``serial_trackers``), VMC tracker
-messages (``vmc_in``) and the emulator (``emulator``) all produce ``TrackerSample``; the
+messages (``vmc_parse``) and the emulator (``emulator``) all produce ``TrackerSample``; the
 solver (``solver``) consumes them.
 """
 
@@ -253,7 +253,7 @@ def vmc_tracker_role(kind: str, serial: str, role_map: dict | None = None) -> "T
 
 
 def samples_from_vmc(trackers, timestamp: float, role_map: dict | None = None) -> list[TrackerSample]:
-    """VMC tracker messages (``vmc_in.TrackerSample``: kind, serial, position, rotation)
+    """VMC tracker messages (``vmc_parse.TrackerSample``: kind, serial, position, rotation)
     -> TrackerSamples, the role from ``vmc_tracker_role``. Trackers with no role are left
     out; the tracker id is the role code. When a sender sends a tracker both avatar-scaled
     and raw (/Local), the avatar-scaled one is used."""
