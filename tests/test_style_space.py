@@ -11,7 +11,6 @@ few training files per style) keep this in test time; skipped without the shared
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,7 +25,7 @@ from stylecast.models.eval import frame_differences
 from stylecast.models.judges import judge_windows
 from stylecast.models.restyle import restyle_rotations
 from stylecast.models.restyler import Restyler
-from stylecast.models.styles import STYLES, parse_mix
+from stylecast.models.styles import STYLES
 from stylecast.motion.words import DEFAULT_HOP
 
 SHIPPED = ckpt.CHECKPOINT_DIR / "multistyle.safetensors"

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from stylecast.motion import rotations as rot
 from stylecast.motion.clip import Clip, PoseFrame
 from stylecast.motion.clock import OUTPUT_FPS
 from stylecast.motion.errors import UserError

@@ -5,7 +5,7 @@ Per frame, in this order (the order matters to receivers that frame unbundled st
     /VMC/Ext/Root/Pos  s "root"   fff position  ffff rotation
     /VMC/Ext/Bone/Pos  s <bone>   fff local position  ffff local rotation   (x 22, HUMANOID_BONES)
     /VMC/Ext/OK        i loaded  i calibState  i calibMode  i trackingStatus
-    /VMC/Ext/T         f time    (last: it marks the end of the frame, see vmc_in)
+    /VMC/Ext/T         f time    (last: it marks the end of the frame, see vmc_parse)
 
 All in Unity space (left-handed, Y up, metres) via ``motion.unity``.
 
@@ -42,6 +42,7 @@ import socket
 import sys
 from collections import Counter
 from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -52,6 +53,9 @@ from stylecast.motion.unity import position_to_unity, rotation_to_unity
 from stylecast.drivers.vmc.osc_packets import (DEFAULT_MAX_DATAGRAM, IMMEDIATE, check_port, encode_message,
                           group_for_bundles, osc_string, pack_datagrams)
 from stylecast.drivers.urls import parse_vmc_url
+
+if TYPE_CHECKING:
+    from stylecast.drivers.trackers.trackers import TrackerSample
 
 ROOT_ADDRESS = "/VMC/Ext/Root/Pos"
 BONE_ADDRESS = "/VMC/Ext/Bone/Pos"
@@ -225,7 +229,7 @@ def encode_frame_reference(root_position: np.ndarray, rotations: np.ndarray, bon
 
 def encode_trackers(trackers: Iterable, time: float | None = None, bundled: bool = True,
                     max_datagram: int = DEFAULT_MAX_DATAGRAM) -> list[bytes]:
-    """Tracker poses (``vmc_in.TrackerSample``-like: kind "hmd"/"con"/"tra", serial,
+    """Tracker poses (``vmc_parse.TrackerSample``-like: kind "hmd"/"con"/"tra", serial,
     position cm and rotation xyzw in internal space, local flag) as /VMC/Ext/{Hmd,Con,Tra}/Pos
     (or their /Local variants), then /VMC/Ext/T if ``time`` is given. Cold path (the
     tracker emulator): a handful of messages per frame needs no template."""
