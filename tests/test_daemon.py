@@ -323,7 +323,7 @@ def test_replayed_bandai_clip_equals_restyle_of_the_same_clip(bandai_root, feet)
 def test_several_performers_are_batched_and_each_equals_offline():
     """Their words share model calls and their foot locks one solve per tick, each with its
     own proportions (a child-sized, an adult and a tall performer)."""
-    from tests.test_footlock import stepping
+    from tests.footlock_motion import stepping
 
     roots, q = stepping(200)
     sk = humanoid_skeleton_default()
