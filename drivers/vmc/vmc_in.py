@@ -2,9 +2,10 @@
 
 Two layers, as in python-osc (dispatcher apart from server): ``vmc_parse.VmcParser`` is
 pure (feed it bytes and the sender's address, get completed frames; no socket, injectable
-time), and ``VmcReceiver`` owns a UDP socket and feeds a parser, either when polled or from the
-process's one receive thread (``drivers.receive_hub``: a selector over every input
-socket, bounded work per wake-up, so junk at one port cannot starve the output clock).
+time), and ``VmcReceiver`` owns a UDP socket and feeds a parser, either when polled or
+from the process's one receive thread (``drivers.receive_hub``: a selector over every
+input socket, bounded work per wake-up, so junk at one port cannot starve the output
+clock).
 
 What is read, how frames are completed and what is counted: ``vmc_parse``.
 
