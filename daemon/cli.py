@@ -59,9 +59,9 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--direction", default=None, help="restyling direction of the model")
     p.add_argument("--style", default=None, metavar="NAME[:W,NAME:W...]",
                    help="style of a multi-style model, or a mix such as elderly:0.5,youthful:0.5")
-    p.add_argument("--performer-style", dest="performer_style", default=None, metavar="NAME",
+    p.add_argument("--performer-style", dest="performer_style", default=None, metavar="NAME|auto",
                    help="the style the performers move in (default normal), for a multi-style model: its share "
-                        "of a style mix is the input as performed")
+                        "of a style mix is the input as performed; auto reads it from each word they send")
     p.add_argument("--control", default=None, metavar="HOST:PORT",
                    help="OSC control port (default 127.0.0.1:39570; 'off' disables)")
     p.add_argument("--allow", action="append", default=None, metavar="ADDR",

@@ -86,9 +86,9 @@ class DaemonConfig:
 
             parse_mix(self.style)  # unknown names: one sentence before any model or source is opened
         if self.performer_style:
-            from stylecast.models.styles import check_style
+            from stylecast.models.styles import check_performer_style
 
-            check_style(self.performer_style)
+            check_performer_style(self.performer_style)
         from stylecast.models.device import check_device_name
 
         self.device = check_device_name(self.device)

@@ -37,12 +37,13 @@ def _recurrent_net(features: int, classes: int, hidden: int = 64):
 DESIGNS = {"conv": _net, "gru": _recurrent_net}
 
 
-def _inputs(x: np.ndarray, velocity_only: bool = False):
-    """Features (N, T, J, C) -> (N, 2*J*C, T): poses and per-second velocities (with
-    ``velocity_only`` the pose half is zeroed, so only the dynamics can be judged)."""
+def word_inputs(x, velocity_only: bool = False):
+    """Features (N, T, J, C), numpy or a float32 tensor on any device -> (N, 2*J*C, T):
+    poses and per-second velocities (with ``velocity_only`` the pose half is zeroed, so
+    only the dynamics can be judged)."""
     import torch
 
-    t = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
+    t = x if isinstance(x, torch.Tensor) else torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
     n, T = t.shape[:2]
     t = t.reshape(n, T, -1).transpose(1, 2)
     v = torch.diff(t, dim=2, prepend=t[:, :, :1]) * 60.0
@@ -71,7 +72,7 @@ class WordClassifier:
         loss_fn = nn.CrossEntropyLoss(weight=weight)
         opt = torch.optim.Adam(self.net.parameters(), lr=lr, weight_decay=1e-4)
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
-        xt, yt = _inputs(x, self.velocity_only), torch.from_numpy(np.asarray(y, dtype=np.int64))
+        xt, yt = word_inputs(x, self.velocity_only), torch.from_numpy(np.asarray(y, dtype=np.int64))
         self.net.train()
         for _ in range(epochs):
             order = rng.permutation(len(xt))
@@ -97,7 +98,7 @@ class WordClassifier:
         out = []
         with torch.no_grad():
             for i in range(0, len(x), batch):
-                out.append(trunk(_inputs(x[i:i + batch], self.velocity_only)).numpy())
+                out.append(trunk(word_inputs(x[i:i + batch], self.velocity_only)).numpy())
         return np.concatenate(out) if out else np.zeros((0, self.net[-1].in_features))
 
     def probabilities(self, x: np.ndarray, batch: int = 512) -> np.ndarray:
@@ -106,7 +107,7 @@ class WordClassifier:
         out = []
         with torch.no_grad():
             for i in range(0, len(x), batch):
-                out.append(torch.softmax(self.net(_inputs(x[i:i + batch], self.velocity_only)), dim=1).numpy())
+                out.append(torch.softmax(self.net(word_inputs(x[i:i + batch], self.velocity_only)), dim=1).numpy())
         return np.concatenate(out) if out else np.zeros((0, len(self.classes)))
 
     def accuracy(self, x: np.ndarray, y: np.ndarray) -> float:

@@ -37,7 +37,7 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    for add in (_add_train, _add_tune_holds, _add_restyle, _add_eval):
+    for add in (_add_train, _add_tune_holds, _add_train_reader, _add_restyle, _add_eval):
         add(sub)
 
 
@@ -127,6 +127,17 @@ def _add_tune_holds(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_tune_holds)
 
 
+def _add_train_reader(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("train-reader", help="train the style reader of a multi-style model (--performer-style auto) "
+                                             "and store it in the model's file beside the generator")
+    p.add_argument("--model", default="multistyle", help="the multi-style model (a file or a shipped name)")
+    p.add_argument("--out", type=Path, help="write the model with its reader here (.safetensors; default: in place)")
+    p.add_argument("--epochs", type=_positive_int, help="passes over the training words (default 12)")
+    p.add_argument("--seed", type=int, default=0)
+    _add_data_options(p)
+    p.set_defaults(func=run_train_reader)
+
+
 def _add_restyle(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("restyle", help="restyle a BVH clip with a trained model")
     p.add_argument("input", type=Path)
@@ -135,9 +146,9 @@ def _add_restyle(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--direction", choices=("a2b", "b2a"), help="a pair model's direction (default a2b)")
     p.add_argument("--style", help="target style, or a mix NAME:W,NAME:W (e.g. elderly:0.5,youthful:0.5), for "
                                    "--model multistyle; a pair model takes one of its two styles")
-    p.add_argument("--performer-style", metavar="NAME",
+    p.add_argument("--performer-style", metavar="NAME|auto",
                    help="the style the input is performed in (default normal), for --model multistyle: its share "
-                        "of a style mix is the input as performed")
+                        "of a style mix is the input as performed; auto reads it from each word of the input")
     p.add_argument("--intensity", type=_unit, default=1.0, help="0 = input, 1 = fully restyled")
     p.add_argument("--hop", type=_positive_int,
                    help="frames between words (1..60; 60 = no overlap); default: as `serve`")
@@ -356,6 +367,19 @@ def run_tune_holds(args) -> int:
     _threads(args.threads)
     tune_holds(args.model, args.out, seed=args.seed, data_dir=args.data, cache_dir=args.cache,
                **_given(lambda_hold=args.lambda_hold, distil=args.distil, epochs=args.epochs))
+    return 0
+
+
+def run_train_reader(args) -> int:
+    from stylecast.motion.errors import UserError
+
+    from .style_reader import add_reader
+
+    if args.out is not None and args.out.suffix != ".safetensors":
+        raise UserError(f"--out {args.out} must name a .safetensors file, for example runs/multistyle.safetensors")
+    _threads(args.threads)
+    add_reader(args.model, args.out, seed=args.seed, data_dir=args.data, cache_dir=args.cache,
+               **_given(epochs=args.epochs))
     return 0
 
 

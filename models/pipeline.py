@@ -71,7 +71,24 @@ class StreamWordPipeline(WordPipeline):
         return RT.continuous_in_time(out), RT.usable_words(out)
 
 
-# generator module -> {pipeline class: its graph}
+class ReadingPipeline(nn.Module):
+    """Words (B, T, J, 4) float64 -> each word's style probabilities (B, S), read by a
+    style reader's classifier (``style_reader``) from the features the generator sees:
+    heading removed, encoded, poses and velocities (``classifier.word_inputs``)."""
+
+    def __init__(self, classifier: nn.Module, trep: RT.TorchRepresentation):
+        super().__init__()
+        self.classifier = classifier
+        self.trep = trep
+
+    def forward(self, words: torch.Tensor) -> torch.Tensor:
+        from .classifier import word_inputs
+
+        flat, _ = RT.remove_heading(words)
+        return torch.softmax(self.classifier(word_inputs(self.trep.encode(flat))), dim=1)
+
+
+# generator (or classifier) module -> {pipeline class: its graph}
 _traced: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _tracing = threading.Lock()  # one trace per graph, even when two threads ask at once
 
@@ -86,6 +103,14 @@ def restyle_for_stream(generator: nn.Module, trep: RT.TorchRepresentation, words
                        conditioning: tuple = ()) -> tuple[torch.Tensor, torch.Tensor]:
     """``StreamWordPipeline(generator, trep)(words, *conditioning)`` as one traced call."""
     return _run(StreamWordPipeline, generator, trep, words, conditioning)
+
+
+def read_styles(classifier: nn.Module, trep: RT.TorchRepresentation, words: torch.Tensor) -> torch.Tensor:
+    """``ReadingPipeline(classifier, trep)(words)`` as one traced call: the reading, beside
+    the model's own call in the daemon's model thread, must not give the GIL back to the
+    output loop after each of its operations either (eager, a job of 8 words took 371 ms
+    against 14 beside a thread busy in Python; ``bench/bench_models.py --model multistyle``)."""
+    return _run(ReadingPipeline, classifier, trep, words, ())
 
 
 def traced(generator: nn.Module, kind: type = WordPipeline):

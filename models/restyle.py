@@ -182,14 +182,14 @@ def restyle_file(input_path, output_path, model=None, direction: str | None = No
 
     from .restyler import Restyler
 
-    from .styles import check_style, parse_mix
+    from .styles import check_performer_style, parse_mix
 
     if fps is not None:
         check_frame_rate(fps)
     check_feet(feet)
     check_pace(pace)
     if performer_style is not None:
-        check_style(performer_style)
+        check_performer_style(performer_style)
     if style is not None:
         parse_mix(style)  # unknown names are refused before the model and the clip are read
         if direction is not None:

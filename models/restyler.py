@@ -29,6 +29,7 @@ from stylecast.motion.words import WORD_LENGTH  # the one definition of a word's
 from . import checkpoint as ckpt
 from . import representation as R
 from .device import pick_device
+from .styles import READ
 
 MAX_NETWORK_SIZE = 1 << 16  # no width, depth or kernel of a live restyler comes near this
 
@@ -134,7 +135,10 @@ class Restyler:
 
     def with_performer_style(self, style: str) -> "Restyler":
         """This restyler for input performed in ``style``: a pair model's source is its
-        direction's, so it is itself for that style and refuses any other."""
+        direction's, so it is itself for that style and refuses any other, and reads none."""
+        if style == READ:
+            raise UserError(f"model {self.name} cannot read the performer's style (--performer-style {READ}); "
+                            f"load the multistyle model (--model multistyle) or name the style")
         if not self.accepts_source(style):
             raise UserError(f"model {self.name} restyles {self.source_style} input in this direction, not {style}; "
                             f"choose the direction instead, or load the multistyle model (--model multistyle)")
@@ -191,9 +195,11 @@ class Restyler:
         """A tensor as a numpy array, without a torch operation for one on the CPU."""
         return tensor.numpy() if tensor.device.type == "cpu" else tensor.cpu().numpy()
 
-    def _network(self, batch: int, direction: str | None = None) -> tuple:
+    def _network(self, batch: int, direction: str | None = None, *, words=None) -> tuple:
         """The generator module a batch of ``batch`` words goes through and the tensors
-        that condition it (none for a pair model)."""
+        that condition it (none for a pair model). ``words``: the batch's quaternion words,
+        a tensor on the model's device, for a model that reads them to condition itself
+        (none where the batch is given as features)."""
         return self.generator(direction), ()
 
     def _generate(self, features, direction: str | None):
@@ -230,7 +236,7 @@ class Restyler:
         if len(w) == 0:
             out = w.clone()
         else:
-            network, conditioning = self._network(len(w), direction)
+            network, conditioning = self._network(len(w), direction, words=w)
             out = pipeline.restyle(network, self.torch_representation, w.contiguous(), conditioning)
         return out if is_tensor else self.to_host(out)
 
@@ -244,7 +250,7 @@ class Restyler:
 
         w = self.to_device(np.asarray(words, dtype=np.float64))
         _check_words_shape(tuple(w.shape))
-        network, conditioning = self._network(len(w), *args)
+        network, conditioning = self._network(len(w), *args, words=w)
         out, ok = pipeline.restyle_for_stream(network, self.torch_representation, w, conditioning)
         return self.to_host(out), self.to_host(ok)
 
@@ -265,8 +271,8 @@ class Restyler:
 
         from . import pipeline
 
-        network, conditioning = self._network(len(words), *args)
         w = torch.from_numpy(np.asarray(words, dtype=np.float64)).to(self.device)
+        network, conditioning = self._network(len(words), *args, words=w)
         return pipeline.restyle_eager(network, self.torch_representation, w, conditioning).cpu().numpy()
 
     def restyle_words_numpy(self, words: np.ndarray, direction: str | None = None) -> np.ndarray:

@@ -9,8 +9,10 @@ The input may be in any style: the generator is told only the target. The share 
 that is the performer's own style (``performer_style``, default the neutral style, as the
 pace assumes) means "as performed": it scales the correction down instead of entering the
 code, so the performer's own style is the input itself and a half mix with it is half the
-restyle (``code_and_intensity``). Everything around the generator (heading, representation,
-hemisphere, one batched call under no_grad) is the pair restyler's (``restyler.Restyler``).
+restyle (``code_and_intensity``); with ``performer_style`` ``auto`` (``styles.READ``) the
+checkpoint's style reader reads that style from each word (``style_reader``). Everything
+around the generator (heading, representation, hemisphere, one batched call under no_grad)
+is the pair restyler's (``restyler.Restyler``).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from stylecast.motion.errors import UserError
 from stylecast.motion.smoothing import CORRECTION_TAU
 
 from .restyler import Restyler, _identity_words, build_checked, network_config, register_kind
-from .styles import NEUTRAL, STYLES, check_style, describe_mix, one_hot, parse_mix
+from .styles import NEUTRAL, READ, STYLES, check_performer_style, describe_mix, one_hot, parse_mix
 
 KIND = "multistyle"
 
@@ -45,7 +47,7 @@ class MultiStyleRestyler(Restyler):
     start_restyled = False
     correction_tau = CORRECTION_TAU  # the pair model's shorter one put active's jerk over its goal
 
-    def __init__(self, model, rep, metadata: dict, weights=None, path=None, intensity: float = 1.0):
+    def __init__(self, model, rep, metadata: dict, weights=None, path=None, intensity: float = 1.0, reader=None):
         from .networks import batch_invariant
 
         self.model = batch_invariant(model.eval())  # its words must not depend on their batch
@@ -58,6 +60,7 @@ class MultiStyleRestyler(Restyler):
         self.weights = one_hot(NEUTRAL, self.style_names) if weights is None else np.asarray(weights, np.float64)
         self.intensity = float(intensity)
         self.performer_style = NEUTRAL  # the style the input is taken to be in: ``with_performer_style``
+        self.reader = reader  # the checkpoint's ``style_reader.StyleReader``, if it has one
 
     @property
     def feet(self) -> str:
@@ -71,8 +74,9 @@ class MultiStyleRestyler(Restyler):
 
     def pace(self, weights=None) -> tuple:
         """The pace of the mix ``weights`` (default this restyler's) against the performer's
-        style's (``performer_style``: the neutral style unless told; it is not known live, and
-        the training clips of the other styles are restyled from normal; ``pace.pace_points``)."""
+        style's (``performer_style``: the neutral style unless told, since the training clips
+        of the other styles are restyled from normal; ``pace.pace_points``). A style read word
+        by word (``auto``) gives no pace: the input's is kept, as for an unknown style."""
         from .pace import pace_points
 
         mix = self.weights if weights is None else np.asarray(weights, np.float64)
@@ -81,6 +85,8 @@ class MultiStyleRestyler(Restyler):
     @classmethod
     def from_checkpoint(cls, path, tensors, meta, rep, device, **_) -> "MultiStyleRestyler":
         from .multistyle import MultiStyleConfig, make_generator
+        from .representation_torch import TorchRepresentation
+        from .style_reader import StyleReader
 
         styles = meta["styles"]
         if not (isinstance(styles, list) and tuple(styles) == STYLES):
@@ -93,7 +99,8 @@ class MultiStyleRestyler(Restyler):
         model = build_checked(path, {k[2:]: v for k, v in tensors.items() if k.startswith("G.")}, rep, cfg,
                               lambda: make_generator(cfg, rep.combine), ("",))
         model.to(device)
-        return cls(model, rep, meta, path=path)
+        reader = StyleReader.from_checkpoint(path, tensors, meta, TorchRepresentation(rep, device))
+        return cls(model, rep, meta, path=path, reader=reader)
 
     # -- facts ----------------------------------------------------------------------------
     @property
@@ -139,9 +146,14 @@ class MultiStyleRestyler(Restyler):
 
     def with_performer_style(self, style: str) -> "MultiStyleRestyler":
         """The same model for input performed in ``style``: its share of a mix is the input
-        as performed (``code_and_intensity``), and the pace starts from its pace."""
+        as performed (``code_and_intensity``), and the pace starts from its pace. ``auto``
+        (``READ``): the style read from each word by the checkpoint's reader."""
+        check_performer_style(style, self.style_names)
+        if style == READ and self.reader is None:
+            raise UserError(f"model {self.name} has no style reader to read the performer's style with; add one "
+                            f"with `stylecast train-reader --model {self.path or self.name}`, or name the style")
         other = copy.copy(self)
-        other.performer_style = self.style_names[check_style(style, self.style_names)]
+        other.performer_style = style
         return other
 
     def with_style(self, text: str) -> "MultiStyleRestyler":
@@ -184,14 +196,15 @@ class MultiStyleRestyler(Restyler):
 
     __call__ = restyle_words
 
-    def _network(self, batch: int, weights=None) -> tuple:
+    def _network(self, batch: int, weights=None, *, words=None) -> tuple:
         """The conditioned generator and its conditioning: each word's mix (``weights``
         (B, S), default this restyler's) and the intensity. Worked out in numpy and handed
         over without a torch operation (``to_device``): the daemon's model thread runs this
         beside the output loop, and each eager torch operation (a dozen here) released the
         GIL and waited to win it back. Beside a thread busy in Python (1 ms switch
         interval) a job of 8 words took 14.6 ms with them in torch, against 9.7 ms
-        worked out before the call (Intel Xeon VM, 2 vCPUs; scratch measure, 2026-11-29)."""
+        worked out before the call (Intel Xeon VM, 2 vCPUs; scratch measure, 2026-11-29).
+        A style read from the ``words`` (``auto``) adds one traced call (``pipeline.read_styles``)."""
         if weights is None:
             w = np.broadcast_to(np.asarray(self.weights, np.float32), (batch, len(self.style_names)))
         else:
@@ -200,26 +213,39 @@ class MultiStyleRestyler(Restyler):
             w = np.asarray(weights, np.float32)
             if w.shape != (batch, len(self.style_names)):
                 raise ValueError(f"style weights must have shape ({batch}, {len(self.style_names)}), got {w.shape}")
-        code, kept = code_and_intensity(w, self.style_names.index(self.performer_style))
+        code, kept = code_and_intensity(w, self._performer(batch, words))
         kept = (np.float32(self.intensity) * kept).astype(np.float32)
         return self.model, (self.to_device(code), self.to_device(kept))
 
+    def _performer(self, batch: int, words) -> np.ndarray:
+        """The performer's style of each word (B, S): read from the ``words`` (``auto``),
+        else the named style's one-hot row."""
+        if self.performer_style != READ:
+            return np.broadcast_to(one_hot(self.performer_style, self.style_names).astype(np.float32),
+                                   (batch, len(self.style_names)))
+        if words is None:
+            raise ValueError("the performer's style is read from the words; this path gave the model features")
+        return self.reader.read(words)
 
-def code_and_intensity(weights: np.ndarray, own: int) -> tuple[np.ndarray, np.ndarray]:
-    """Mixes ``weights`` (B, S), one per word, -> (the generator's code weights (B, S), the
-    share of the correction kept (B,)), float32. The share of style ``own`` (the
-    performer's) is the input as performed: it is left out of the code and scales the
-    correction down, so the performer's own style is exactly the input and "elderly 0.5"
-    (half the neutral style's) is half of elderly's correction. The generator is told only
-    a target, and the code of the input's own style does not restyle it to itself: held-out
-    normal words told "normal" moved 3.55 degrees a bone on average (9.8 on the worst
-    bone), against 9.0 for "exhausted" (scratch measure, 2026-11-27). A mix that is all
-    ``own`` keeps its code (any: its correction is scaled to nothing), so the weights stay
-    continuous through a crossfade to or from the performer's own style."""
+
+def code_and_intensity(weights: np.ndarray, performer: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mixes ``weights`` (B, S), one per word, and the performer's style of each word,
+    ``performer`` (B, S) (a named style's one-hot row, or a reader's probabilities) -> (the
+    generator's code weights (B, S), the share of the correction kept (B,)), float32. The
+    mix's overlap with the performer's style (per style the smaller of the two) is the
+    input as performed: it is left out of the code and scales the correction down, so the
+    performer's own style is exactly the input and "elderly 0.5" (half the neutral style's)
+    is half of elderly's correction. The generator is told only a target, and the code of
+    the input's own style does not restyle it to itself: held-out normal words told
+    "normal" moved 3.55 degrees a bone on average (9.8 on the worst bone), against 9.0 for
+    "exhausted" (scratch measure, 2026-11-27). A mix that is all the performer's keeps its
+    code (any: its correction is scaled to nothing), so the weights stay continuous through
+    a crossfade to or from the performer's own style; and a reading is continuous too: a
+    word read 60 % elderly keeps 40 % of an elderly target's correction."""
     weights = np.asarray(weights, np.float32)
     total = weights.sum(axis=1)
-    others = weights.copy()
-    others[:, own] = 0.0
+    # A one-hot row gives exactly the mix without its performer's share (w - w = 0, w - 0 = w).
+    others = weights - np.minimum(weights, np.asarray(performer, np.float32) * total[:, None])
     rest = others.sum(axis=1)
     code = np.where((rest > 0)[:, None], others / np.maximum(rest, np.float32(1e-12))[:, None], weights)
     return np.ascontiguousarray(code, np.float32), (rest / total).astype(np.float32)

@@ -20,6 +20,7 @@ from stylecast.motion.errors import UserError
 
 STYLES = ("active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful")
 NEUTRAL = "normal"  # the dataset's neutral style: a multi-style model's default, a weight's remainder
+READ = "auto"  # ``--performer-style auto``: the performer's style read from their words (``style_reader``)
 
 
 def check_style(name: str, known=STYLES) -> int:
@@ -27,6 +28,13 @@ def check_style(name: str, known=STYLES) -> int:
     if name not in known:
         raise UserError(f"unknown style {name!r}; the known styles are {', '.join(known)}")
     return list(known).index(name)
+
+
+def check_performer_style(name: str, known=STYLES) -> None:
+    """A performer's style: a style name or ``READ``, else one sentence naming them."""
+    if name != READ and name not in known:
+        raise UserError(f"unknown performer style {name!r}; name one of {', '.join(known)}, or {READ} to have "
+                        f"it read from the performer's motion")
 
 
 def mix_from_pairs(pairs, known=STYLES) -> np.ndarray:

@@ -92,7 +92,7 @@ def test_serve_style_is_checked_before_anything_opens():
 
 
 def test_serve_performer_style_is_checked_before_anything_opens_and_a_pair_model_refuses_another_source():
-    with pytest.raises(UserError, match="unknown style 'sleepy'.*youthful"):
+    with pytest.raises(UserError, match="unknown performer style 'sleepy'.*youthful, or auto to have it read"):
         DaemonConfig(performer_style="sleepy").validate()
     pair = Restyler.load("normal2exhausted")
     with pytest.raises(UserError, match="restyles normal input in this direction, not elderly"):

@@ -153,7 +153,7 @@ def test_the_performers_own_style_is_the_input_and_its_half_mix_is_half_the_rest
     # strength, as before; with it, the other styles' code at the share they have.
     mixes = np.stack([parse_mix("elderly:0.25,youthful:0.75"), parse_mix("elderly:0.5,normal:0.5"),
                       one_hot("normal")]).astype(np.float32)
-    code, kept = code_and_intensity(mixes, STYLES.index("normal"))
+    code, kept = code_and_intensity(mixes, np.broadcast_to(np.float32(one_hot("normal")), mixes.shape))
     assert np.array_equal(code[0], mixes[0]) and np.array_equal(code[1], np.float32(one_hot("elderly")))
     assert code.dtype == kept.dtype == np.float32 and kept.tolist() == [1.0, 0.5, 0.0]
 
@@ -168,7 +168,7 @@ def test_told_another_performer_style_that_style_passes_through_and_normal_is_re
     together = r.restyle_words(words, mixes)
     for i, w in enumerate(mixes):
         assert np.allclose(together[i], r.with_mix(w).restyle_words(words[i:i + 1])[0], atol=1e-6)
-    with pytest.raises(UserError, match="unknown style 'ancient'"):
+    with pytest.raises(UserError, match="unknown performer style 'ancient'.*youthful, or auto"):
         r.with_performer_style("ancient")
 
 
@@ -330,12 +330,16 @@ def test_restyle_checks_the_performer_style_first_and_a_pair_model_refuses_anoth
     code = main(["restyle", str(tmp_path / "absent.bvh"), "-o", str(tmp_path / "o.bvh"), "--model",
                  str(tmp_path / "absent.safetensors"), "--performer-style", "sleepy"])
     err = capsys.readouterr().err
-    assert code == 2 and "unknown style 'sleepy'" in err and "Traceback" not in err
+    assert code == 2 and "unknown performer style 'sleepy'" in err and "Traceback" not in err
     # The shipped pair model restyles normal input: told elderly, one sentence before the clip is read.
     code = main(["restyle", str(tmp_path / "absent.bvh"), "-o", str(tmp_path / "o.bvh"), "--performer-style",
                  "elderly"])
     err = capsys.readouterr().err
     assert code == 2 and "restyles normal input in this direction, not elderly" in err and "Traceback" not in err
+    # ...and cannot read the performer's style at all.
+    code = main(["restyle", str(tmp_path / "absent.bvh"), "-o", str(tmp_path / "o.bvh"), "--performer-style", "auto"])
+    err = capsys.readouterr().err
+    assert code == 2 and "cannot read the performer's style" in err and "Traceback" not in err
 
 
 def test_eval_refuses_an_unknown_target_and_needs_one_for_a_multistyle_model(tmp_path, capsys):
