@@ -202,6 +202,17 @@ def main() -> int:
             rows.append(("  baseline: numpy passes around restyle_words (the previous release)",
                          median_ms(lambda: InferenceWorker._call(NumpyAroundTheCall, job, words[:n]), 20, 2), ""))
 
+    reader = getattr(restyler, "reader", None)
+    if reader is not None:  # `--performer-style auto`: the same job with the style read from its words
+        reading = restyler.with_performer_style("auto")
+        with busy_python_thread(0.001):
+            for n in (8, 64):
+                job = [(0, 59, w) for w in words[:n]]
+                rows.append((f"the model thread's job, {n} words, the performer's style read (auto; wall)",
+                             median_ms(lambda: InferenceWorker._call(reading, job, words[:n]), 20, 2), ""))
+                rows.append(("  baseline: the same job, the style named (wall)",
+                             median_ms(lambda: InferenceWorker._call(restyler, job, words[:n]), 20, 2), ""))
+
     # restyle_words at growing batches: words/s with numpy in and out (what `restyle` and the
     # daemon hand it), and with the words already on the model's device (a tensor in and out).
     batch_rows = []
