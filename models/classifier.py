@@ -83,6 +83,9 @@ class WordClassifier:
                 opt.step()
             sched.step()
         self.net.eval()
+        with torch.no_grad():
+            for parameter in self.net.parameters():
+                parameter.copy_(torch.from_numpy(flush_subnormals(parameter.detach().numpy())))
         return self
 
     def predict(self, x: np.ndarray, batch: int = 512) -> np.ndarray:
@@ -112,3 +115,17 @@ class WordClassifier:
 
     def accuracy(self, x: np.ndarray, y: np.ndarray) -> float:
         return float(np.mean(self.predict(x) == np.asarray(y))) if len(x) else float("nan")
+
+
+def flush_subnormals(weights: np.ndarray) -> np.ndarray:
+    """``weights`` with their subnormal floats set to zero, as ``WordClassifier.fit`` leaves
+    its network. The weight decay leaves the weights of channels that stopped learning
+    decaying towards zero, and x86 multiplies the subnormal ones (below 1.2e-38) slowly: a
+    conv style judge fitted as ``stylecast eval`` fits them had 5,044, and read 2,523
+    held-out windows (probabilities and features) in 15.9 CPU-s with them, 0.7 without; the
+    style reader (2,017 of them) read 64 words in 40 ms with them, 5.3 ms without. Both
+    gave the same bits either way: each such weight is far below half a unit in the last
+    place of any sum it enters (scratch measures, Intel Xeon VM, 2026-11-29)."""
+    weights = np.array(weights)
+    weights[np.abs(weights) < np.finfo(weights.dtype).tiny] = 0
+    return weights

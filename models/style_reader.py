@@ -89,7 +89,7 @@ def train_reader(rep, data_dir=None, cache_dir=None, seed: int = 0, epochs: int 
     guess = classifier.predict(xv)
     per_style = {s: round(float(np.mean(guess[yv == k] == k)), 4) for k, s in enumerate(STYLES)}
     log("held-out words read right: " + ", ".join(f"{s} {100 * a:.1f} %" for s, a in per_style.items()))
-    tensors = {PREFIX + k: flush_subnormals(v.detach().cpu().numpy()) for k, v in classifier.net.state_dict().items()}
+    tensors = {PREFIX + k: v.detach().cpu().numpy() for k, v in classifier.net.state_dict().items()}
     meta = {"styles": list(STYLES), "design": DESIGN, "seed": seed, "epochs": epochs, "hop": HOP,
             "training_words": int(len(x)), "held_out_words": int(len(xv)),
             "held_out_accuracy": round(float(np.mean(guess == yv)), 4), "held_out_accuracy_per_style": per_style}
@@ -120,13 +120,3 @@ def add_reader(model, out=None, seed: int = 0, data_dir=None, cache_dir=None, ep
     log(f"wrote {target} with its style reader ({info['training_seconds']:.0f} s)")
     return target
 
-
-def flush_subnormals(weights: np.ndarray) -> np.ndarray:
-    """``weights`` with their subnormal floats set to zero. The weight decay leaves the
-    weights of channels that stopped learning decaying towards zero, and 2,017 of the
-    shipped reader's had become subnormal (below 1.2e-38), which x86 multiplies slowly:
-    reading 64 words took 40 ms with them and 5.3 ms without (Intel Xeon VM, one
-    thread). Each is far below half a unit in the last place of any sum it enters."""
-    weights = np.array(weights)
-    weights[np.abs(weights) < np.finfo(weights.dtype).tiny] = 0
-    return weights
