@@ -205,6 +205,7 @@ def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_root
             "slide_in": M.slide_samples(p_in, planted), "slide_out": M.slide_samples(p_out, planted),
             "skate_in": M.skate_samples(p_in), "skate_out": M.skate_samples(p_out),
             "hold_in": M.hold_samples(p_in, held), "hold_out": M.hold_samples(p_out, held),
+            "step_in": M.step_heights(p_in), "step_out": M.step_heights(p_out),
             "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
             "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out),
             "hinge_in": M.off_hinge(inp), "hinge_out": M.off_hinge(out)}
@@ -233,6 +234,8 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
     k_out = np.concatenate([c["skate_out"] for c in per_clip])
     h_in = np.concatenate([c["hold_in"] for c in per_clip])
     h_out = np.concatenate([c["hold_out"] for c in per_clip])
+    st_in = np.concatenate([c["step_in"] for c in per_clip])
+    st_out = np.concatenate([c["step_out"] for c in per_clip])
     # Votes are (judges, windows): every figure read by the judges is given per judge and
     # as the panel's mean (report.py reads the goals on the worst judge).
     pred = np.concatenate(windows_pred, axis=1) if windows_pred else np.zeros((1, 0), int)
@@ -282,6 +285,9 @@ def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_act
         "hold_cm_per_frame": float(h_out.mean()) if h_out.size else float("nan"),
         "hold_input_cm_per_frame": float(h_in.mean()) if h_in.size else float("nan"),
         "hold_ratio": _mean_ratio(h_out, h_in),
+        "step_height_cm": float(st_out.mean()) if st_out.size else float("nan"),
+        "step_height_input_cm": float(st_in.mean()) if st_in.size else float("nan"),
+        "step_height_ratio": _mean_ratio(st_out, st_in),
         "timing_sync": float(np.mean(sync)) if sync else float("nan"),
         "floor_penetration_cm": float(sink.mean()) if sink.size else float("nan"),
         "floor_penetration_p99_cm": float(np.percentile(sink, 99)) if sink.size else float("nan"),
@@ -419,7 +425,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "fmd_floor": float(np.mean(fmd_floors)), "fmd_floor_judges": fmd_floors,
                "fmd_floor_parts": ref.fmd,
                "real_target_jerk_ratio": ref.jerk, "real_target_hold_ratio": ref.hold,
-               "real_target_skate_ratio": ref.skate, "travel_ceiling": ceiling, "tempo_ceiling": tempo,
+               "real_target_skate_ratio": ref.skate, "real_target_step_ratio": ref.step,
+               "travel_ceiling": ceiling, "tempo_ceiling": tempo,
                "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
                "torch_threads": _torch_threads()}
@@ -436,9 +443,9 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
 class _RealReference:
     """What a target's figures are read against, from real motion alone: the style judges'
     features of the real held-out target windows (per judge) and their actions, FMD between
-    real training and held-out target windows (the floor), and the jerk, holds and skating
-    of real target-style clips over real source-style clips of the same action, per action
-    (a take's own holds: real motion has no input to hold still against)."""
+    real training and held-out target windows (the floor), and the jerk, holds, skating and
+    step height of real target-style clips over real source-style clips of the same action,
+    per action (a take's own holds: real motion has no input to hold still against)."""
 
     features: list
     labels: np.ndarray
@@ -446,6 +453,7 @@ class _RealReference:
     jerk: dict
     hold: dict
     skate: dict
+    step: dict
 
     @classmethod
     def of(cls, target, source, files, actions, skeleton, judges, held, real, per_style, cache_dir) -> "_RealReference":
@@ -455,7 +463,7 @@ class _RealReference:
         labels = _window_labels(real[target], [actions.index(m.file.action) for m in held[target]])
         train_labels = _window_labels(train_takes, [actions.index(m.file.action) for m in target_train])
         fmd = fmd_figures(judges.style_features(np.concatenate(train_takes)), train_labels, features, labels, actions)
-        jerk, hold, skate = {}, {}, {}
+        jerk, hold, skate, step = {}, {}, {}, {}
         for a in actions:
             pos = {s: [M.world_positions(m.rotations, m.root_positions, skeleton)
                        for m in held[s] if m.file.action == a] for s in (source, target)}
@@ -467,7 +475,9 @@ class _RealReference:
                 hold[a] = _mean_ratio(h[target], h[source])
                 k = {s: np.concatenate([M.skate_samples(p) for p in pos[s]]) for s in pos}
                 skate[a] = _mean_ratio(k[target], k[source])
-        return cls(features, labels, fmd, jerk, hold, skate)
+                st = {s: np.concatenate([M.step_heights(p) for p in pos[s]]) for s in pos}
+                step[a] = _mean_ratio(st[target], st[source])
+        return cls(features, labels, fmd, jerk, hold, skate, step)
 
 
 def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: int, skeleton, judges,

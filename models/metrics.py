@@ -19,6 +19,11 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   against the hips (below ``HOLD_SPEED``), how fast the output's moves there. A performer
   who holds a pose expects the avatar to hold it; a slow drift of the correction moves a
   held hand by centimetres while jerk, which sees only fast changes, stays at the input's.
+* step height (``step_heights``): how high each ankle rises above where it stands in a
+  take (its 98th-percentile height over its 5th), against the input's, and real target
+  takes' against real source takes'. An elderly walk shuffles (real held-out elderly walks
+  step 11.0 cm, normal ones 14.0); a restyle that bends the swing leg more steps higher, which
+  no other measure here and no judge flagged (the multistyle model towards elderly: 18.6 cm).
 * floor penetration: how far a foot joint of the output sinks below the lowest the same
   joint goes in the input (the input's floor contact), per frame.
 * timing sync: Pearson correlation of per-frame body speed (mean over joints of speed
@@ -163,6 +168,17 @@ def skate_samples(positions: np.ndarray) -> np.ndarray:
             speed = np.linalg.norm(np.diff(positions[:, j][:, [0, 2]], axis=0), axis=-1)
             parts.append(np.where(h < SKATE_HEIGHT, (2.0 - 2.0 ** (h / SKATE_HEIGHT)) * speed, 0.0))
     return np.concatenate(parts)
+
+
+STEP_JOINTS = ("LeftFoot", "RightFoot")  # the ankles
+STEP_PERCENTILES = (5.0, 98.0)  # where it stands, and how high it steps (not its single highest frame)
+
+
+def step_heights(positions: np.ndarray) -> np.ndarray:
+    """(T, J, 3) -> (2,) cm: each ankle's step height in the take, the 98th percentile of
+    its height over its 5th (about 0 for a foot that stays on the floor)."""
+    low, high = np.percentile(positions[:, _index(STEP_JOINTS), 1], STEP_PERCENTILES, axis=0)
+    return high - low
 
 
 def floor_penetration(input_positions: np.ndarray, output_positions: np.ndarray) -> np.ndarray:

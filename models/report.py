@@ -224,9 +224,9 @@ def _variants_lines(res: dict, setting: str, floors: list[float]) -> list[str]:
              "| variant | judged target | action kept (2 s) | action kept (1 s) | FMD / floor | jerk all | "
              "jerk hands | jerk feet | largest one-frame jerk / input's, worst clip (median) | "
              "slide cm/frame (ratio) | skating, own contacts, cm/frame (ratio) | "
-             "held hands and head cm/frame (ratio) | feet below floor mean / p99 cm | "
+             "held hands and head cm/frame (ratio) | step height cm (ratio) | feet below floor mean / p99 cm | "
              "elbows and knees off hinge, p99 deg | sync | seam (/ input's) | judged target, dynamics |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, r in res.items():
         o = r[setting]["overall"]
         jr = o["jerk_ratio"]
@@ -239,6 +239,7 @@ def _variants_lines(res: dict, setting: str, floors: list[float]) -> list[str]:
                      f"{_num(o['slide_cm_per_frame'], 3)} ({_num(o['slide_ratio'], 2)}) | "
                      f"{_num(o.get('skate_cm_per_frame'), 3)} ({_num(o.get('skate_ratio'), 2)}) | "
                      f"{_num(o.get('hold_cm_per_frame'), 3)} ({_num(o.get('hold_ratio'), 2)}) | "
+                     f"{_num(o.get('step_height_cm'), 1)} ({_num(o.get('step_height_ratio'), 2)}) | "
                      f"{_num(o['floor_penetration_cm'], 2)} / {_num(o['floor_penetration_p99_cm'], 1)} | "
                      f"{_num(o.get('off_hinge_p99_deg', float('nan')), 2)} | "
                      f"{_num(o['timing_sync'], 3)} | {_num(o['seam_ratio'], 3)} "
@@ -264,6 +265,8 @@ PER_ACTION = (("judged target", "judged_target", _pct), ("action kept (2 s)", "a
               ("planted-foot slide ratio", "slide_ratio", lambda v: _num(v, 2)),
               ("skating on the output's own contacts, ratio", "skate_ratio", lambda v: _num(v, 2)),
               ("held hands and head, speed ratio", "hold_ratio", lambda v: _num(v, 2)),
+              ("step height ratio (against the real-motion table's)", "step_height_ratio",
+               lambda v: _num(v, 2)),
               ("timing sync", "timing_sync", lambda v: _num(v, 3)))
 
 
@@ -297,15 +300,17 @@ def _real_motion_lines(m: dict) -> list[str]:
     """Real target-style clips over real source-style clips of the same action."""
     holds = m.get("real_target_hold_ratio", {})  # absent from reports before the hold measure
     skates = m.get("real_target_skate_ratio", {})  # ...and the skating measure
-    lines = ["", f"## Real motion: jerk (and holds, skating) of real {m['target']} clips over real {m['source']} "
+    steps = m.get("real_target_step_ratio", {})  # ...and the step height
+    lines = ["", f"## Real motion: jerk (and holds, skating, step height) of real {m['target']} clips over real {m['source']} "
              "clips of the same action", "",
              "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else "")
-             + (" skating on own contacts |" if skates else ""),
-             "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "")]
+             + (" skating on own contacts |" if skates else "") + (" step height |" if steps else ""),
+             "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "") + ("---|" if steps else "")]
     for a, g in m["real_target_jerk_ratio"].items():
         lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |"
                      + (f" {_num(holds.get(a), 2)} |" if holds else "")
-                     + (f" {_num(skates.get(a), 2)} |" if skates else ""))
+                     + (f" {_num(skates.get(a), 2)} |" if skates else "")
+                     + (f" {_num(steps.get(a), 2)} |" if steps else ""))
     return lines
 
 

@@ -124,6 +124,22 @@ def test_a_heel_dragged_along_the_floor_raises_the_skating_though_the_planted_sl
     assert left(planted_foot_positions(slide_cm=1.0)).mean() == pytest.approx(1.0)
 
 
+def test_step_height_reads_how_high_a_foot_swings_and_nothing_for_a_standing_one():
+    """The known-bad case it is there for: a restyle that steps higher than its input (the
+    multistyle model towards elderly, whose real walks step lower). A foot swung 12 cm up
+    steps about 12 cm; twice as high, twice the height; a standing foot, nothing; and the
+    identity restyle scores the input's step (ratio 1)."""
+    def step(p):  # the left ankle's (the fixtures' right foot floats at one height)
+        return M.step_heights(p)[M.STEP_JOINTS.index("LeftFoot")]
+
+    assert step(_stepping_foot(clearance_cm=12.0)) == pytest.approx(12.0, abs=0.2)
+    assert step(_stepping_foot(clearance_cm=24.0)) == pytest.approx(2 * step(_stepping_foot(clearance_cm=12.0)))
+    assert step(planted_foot_positions()) == pytest.approx(0.0, abs=1e-9)
+    q, roots = smooth_motion()
+    m = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    np.testing.assert_array_equal(m["step_out"], m["step_in"])
+
+
 def test_timing_sync_falls_for_a_retimed_or_frozen_output():
     q, roots = smooth_motion(360)
     sk = humanoid_skeleton_default()
