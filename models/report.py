@@ -301,8 +301,8 @@ def _real_motion_lines(m: dict) -> list[str]:
     holds = m.get("real_target_hold_ratio", {})  # absent from reports before the hold measure
     skates = m.get("real_target_skate_ratio", {})  # ...and the skating measure
     steps = m.get("real_target_step_ratio", {})  # ...and the step height
-    lines = ["", f"## Real motion: jerk (and holds, skating, step height) of real {m['target']} clips over real {m['source']} "
-             "clips of the same action", "",
+    lines = ["", f"## Real motion: jerk (and holds, skating, step height) of real {m['target']} clips over real "
+             f"{m['source']} clips of the same action", "",
              "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else "")
              + (" skating on own contacts |" if skates else "") + (" step height |" if steps else ""),
              "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "") + ("---|" if steps else "")]
