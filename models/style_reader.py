@@ -35,12 +35,11 @@ HELD_OUT_HOP = 15  # the held-out words recorded in the checkpoint start every q
 class StyleReader:
     """A trained reader: ``read(words)`` -> each word's style probabilities (B, S)."""
 
-    def __init__(self, classifier: WordClassifier, trep, meta: dict):
+    def __init__(self, net, trep):
         from .networks import batch_invariant
 
-        self.net = batch_invariant(classifier.net.eval())  # a word's reading must not depend on its batch
+        self.net = batch_invariant(net.eval())  # a word's reading must not depend on its batch
         self.trep = trep  # the model's representation in torch (``representation_torch``)
-        self.meta = meta
 
     @classmethod
     def from_checkpoint(cls, path, tensors: dict, meta: dict, trep) -> "StyleReader | None":
@@ -59,7 +58,7 @@ class StyleReader:
                                                     if k.startswith(PREFIX)}, ("",))
         classifier.net.load_state_dict(state)
         classifier.net.to(trep.device)
-        return cls(classifier, trep, info)
+        return cls(classifier.net, trep)
 
     def read(self, words) -> np.ndarray:
         """Quaternion words (B, 60, J, 4), a float64 tensor on the model's device -> each
