@@ -63,6 +63,9 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda-mismatch", type=float, default=0.0,
                    help="--styles all: weight of the discriminator's mismatch term, real words of other styles "
                         "scored as fake on a style's head (default 0 = off)")
+    p.add_argument("--lambda-step", type=float, default=0.0,
+                   help="--styles all: weight of the step term, a restyle's feet stepping higher than its "
+                        "target style's, in cm (default 0 = off)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--ema", type=float, metavar="DECAY",
                    help="the model written is the generators' weight average over training with this decay "
@@ -273,19 +276,23 @@ def run_train_multistyle(args) -> int:
     from .train_multistyle import MultiStyleTrainConfig, load_all_styles, train_multistyle
 
     _non_negative(lambda_identity=args.lambda_identity, lambda_action=args.lambda_action,
-                  lambda_mismatch=args.lambda_mismatch)
+                  lambda_mismatch=args.lambda_mismatch, lambda_step=args.lambda_step)
     try:
         net = MultiStyleConfig(**GENERATORS[args.generator], **_network_options(args))
     except ValueError as exc:
         raise UserError(f"--knots: {exc}") from None
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
                                 max_words=args.max_words, lambda_identity=args.lambda_identity,
-                                lambda_mismatch=args.lambda_mismatch, lambda_action=args.lambda_action, network=net,
+                                lambda_mismatch=args.lambda_mismatch, lambda_action=args.lambda_action,
+                                lambda_step=args.lambda_step, network=net,
                                 feet=args.feet, mirror=args.mirror,
                                 **_given(ema=args.ema, epochs=args.epochs, words_per_epoch=args.words_per_epoch))
     train, val, actions = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
+    from . import data as D
+
+    skeleton = D.bandai_skeleton(D.list_files(args.data)) if cfg.lambda_step > 0 else None
     train_multistyle(cfg, args.out, train, val, device=args.device, progress=not args.no_progress,
-                     resume=args.resume, actions=actions)
+                     resume=args.resume, actions=actions, skeleton=skeleton)
     return 0
 
 
@@ -311,8 +318,9 @@ def run_train(args) -> int:
         if args.lambda_position_adv:
             raise UserError("--lambda-position-adv is for a pair model; drop it or drop --styles all")
         return run_train_multistyle(args)
-    if args.lambda_mismatch:
-        raise UserError("--lambda-mismatch is for --styles all; drop it or add --styles all")
+    for flag, value in (("--lambda-mismatch", args.lambda_mismatch), ("--lambda-step", args.lambda_step)):
+        if value:
+            raise UserError(f"{flag} is for --styles all; drop it or add --styles all")
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
                       batch_size=args.batch_size, seed=args.seed,

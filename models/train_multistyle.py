@@ -12,7 +12,8 @@ and generated ones on the head of their target. An identity term
 first; G(x, t) keeps x's action) are optional (default off), as is the discriminator's
 mismatch term (lambda_mismatch: real words of style s scored as fake on the head of the
 target t they were sent to; measured in MODEL_CARD.md, "A discriminator that tells the
-styles apart", and not adopted).
+styles apart", and not adopted), as is the step term (lambda_step, ``steps.py``: G(x, t)'s
+feet step no higher than style t's do against x's style, action by action).
 
 One epoch = ``words_per_epoch`` words, an equal share from every style, drawn without
 replacement with a generator seeded by (seed, epoch); targets come from the same
@@ -45,6 +46,7 @@ from .device import Determinism, pick_device
 from .multistyle import MultiStyleConfig, MultiStyleGAN
 from .networks import count_parameters, to_channels
 from .representation import get_representation
+from .steps import StepTerm
 from .styles import STYLES
 from .epoch_loop import finish, read_train_state, run_epochs, write_models, write_train_state
 from .train import TrainConfig, shared_metadata
@@ -52,7 +54,7 @@ from .train import TrainConfig, shared_metadata
 KIND = "multistyle"
 GENERATOR_PREFIX = "G."
 CODE_TABLE = GENERATOR_PREFIX + "codes.table"
-FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "action", "G_total",
+FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "action", "step", "G_total",
           "val_cycle", "val_diff")
 
 
@@ -68,6 +70,9 @@ class MultiStyleTrainConfig(TrainConfig):
     # other styles as not its own. 0 = off: a head sees only its style's real words and the
     # words made to be it.
     lambda_mismatch: float = 0.0
+    # Weight of the step term (``steps.py``), per cm that a restyle's feet step above what
+    # its target style's do. 0 = off.
+    lambda_step: float = 0.0
     network: MultiStyleConfig = field(default_factory=MultiStyleConfig)
 
     def to_dict(self) -> dict:
@@ -101,7 +106,7 @@ def multistyle_metadata(cfg, rep, code_table, extra: dict | None = None) -> dict
         **shared_metadata(cfg, rep, f"all {len(STYLES)} styles ({', '.join(STYLES)})"),
         "loss": "cycle-diff, any pair (x -> target -> own style)",
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "identity": cfg.lambda_identity,
-                    "action": cfg.lambda_action, "mismatch": cfg.lambda_mismatch},
+                    "action": cfg.lambda_action, "mismatch": cfg.lambda_mismatch, "step": cfg.lambda_step},
     }
     meta.update(extra or {})
     return meta
@@ -109,10 +114,11 @@ def multistyle_metadata(cfg, rep, code_table, extra: dict | None = None) -> dict
 
 class MultiStyleTrainer:
     """``words``: {style: heading-free quaternion words (N, 60, J, 4)} for every style;
-    ``actions``: their actions, needed when ``cfg.lambda_action`` > 0."""
+    ``actions``: their actions, needed when ``cfg.lambda_action`` or ``cfg.lambda_step`` > 0;
+    ``skeleton``: the actors' humanoid skeleton, needed when ``cfg.lambda_step`` > 0."""
 
     def __init__(self, cfg, words: dict, val: dict | None = None, device: str = "auto",
-                 actions: ActionLabels | None = None):
+                 actions: ActionLabels | None = None, skeleton=None):
         import torch
 
         missing = [s for s in STYLES if len(words.get(s, ())) == 0]
@@ -134,18 +140,31 @@ class MultiStyleTrainer:
         self.epoch = 0
         self.eye = torch.eye(len(STYLES), device=self.device)
         self.average = WeightAverage(self.model, (GENERATOR_PREFIX,), cfg.ema) if cfg.ema > 0 else None
-        self.content = self.actions = None
+        self.content = self.actions = self.steps = None
+        if cfg.lambda_action > 0 or cfg.lambda_step > 0:
+            self.actions = self._actions(actions)
         if cfg.lambda_action > 0:
             self._fit_content(actions)
+        if cfg.lambda_step > 0:
+            if skeleton is None:
+                raise UserError("--lambda-step needs the actors' skeleton; train from the dataset folder")
+            self.steps = StepTerm(self.rep, skeleton, self.device, [to_channels(w) for w in self.words], self.actions,
+                                  len(actions.classes))
 
-    def _fit_content(self, actions: ActionLabels | None) -> None:
+    def _actions(self, actions: ActionLabels | None) -> list:
+        """Each style's training words' actions, as tensors."""
+        import torch
+
+        if actions is None or any(len(actions.train.get(s, ())) != len(w) for s, w in zip(STYLES, self.words)):
+            flag = "--lambda-action" if self.cfg.lambda_action > 0 else "--lambda-step"
+            raise UserError(f"{flag} needs the action of every training word; train from the dataset folder")
+        return [torch.from_numpy(actions.train[s]) for s in STYLES]
+
+    def _fit_content(self, actions: ActionLabels) -> None:
         """The frozen action classifier of the content loss, trained on every style's words
         and scored on the held-out ones."""
         import torch
 
-        if actions is None or any(len(actions.train.get(s, ())) != len(w) for s, w in zip(STYLES, self.words)):
-            raise UserError("--lambda-action needs the action of every training word; train from the dataset folder")
-        self.actions = [torch.from_numpy(actions.train[s]) for s in STYLES]
         x = torch.cat([to_channels(w) for w in self.words])
         self.content = FrozenClassifier(actions.classes, x.shape[1], self.cfg.seed).fit(
             x, torch.cat(self.actions).numpy(), self.device)
@@ -182,6 +201,11 @@ class MultiStyleTrainer:
             acl = self.content.loss(fake, actions)
             total = total + cfg.lambda_action * acl
             action = acl.item()
+        step = 0.0
+        if self.steps is not None:
+            stl = self.steps(fake, x, actions, src, tgt)
+            total = total + cfg.lambda_step * stl
+            step = stl.item()
         self.opt_g.zero_grad(set_to_none=True)
         total.backward()
         self.opt_g.step()
@@ -200,7 +224,7 @@ class MultiStyleTrainer:
         d.backward()
         self.opt_d.step()
         return {"G_adv": adv.item(), "D": d.item(), "cycle": cyc.item(), "diff": dif.item(), "identity": ident,
-                "action": action, "G_total": total.item()}
+                "action": action, "step": step, "G_total": total.item()}
 
     def epoch_plan(self, rng: np.random.Generator) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Batches of (style, word index, target) for one epoch, equal shares per style."""
@@ -278,11 +302,11 @@ class MultiStyleTrainer:
 
 def train_multistyle(cfg, out: Path, words: dict, val: dict | None = None, device: str = "auto",
                      progress: bool = True, log=print, resume: bool = False,
-                     actions: ActionLabels | None = None) -> MultiStyleTrainer:
+                     actions: ActionLabels | None = None, skeleton=None) -> MultiStyleTrainer:
     """Train (or resume) into folder ``out``; returns the trainer (model at the last epoch)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    trainer = MultiStyleTrainer(cfg, words, val, device, actions)
+    trainer = MultiStyleTrainer(cfg, words, val, device, actions, skeleton)
     trainer.determinism.log = log
     extra = {}
     if trainer.content is not None:
