@@ -37,7 +37,7 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    for add in (_add_train, _add_tune_holds, _add_train_reader, _add_restyle, _add_eval):
+    for add in (_add_train, _add_tune_holds, _add_tune_steps, _add_train_reader, _add_restyle, _add_eval):
         add(sub)
 
 
@@ -128,6 +128,19 @@ def _add_tune_holds(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=3)
     _add_data_options(p)
     p.set_defaults(func=run_tune_holds)
+
+
+def _add_tune_steps(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("tune-steps", help="tune a trained multi-style model so its restyles step no higher than "
+                                           "their target style does, changing nothing else it can help")
+    p.add_argument("--model", default="multistyle", help="the multi-style model to tune (a file or a shipped name)")
+    p.add_argument("--out", type=Path, required=True, help="the tuned model's file (.safetensors)")
+    p.add_argument("--lambda-step", type=float, help="weight of the step term, per cm (default 1)")
+    p.add_argument("--distil", type=float, help="weight of the distillation to the model as it was (default 100)")
+    p.add_argument("--epochs", type=_positive_int, help="passes over every style's training words (default 4)")
+    p.add_argument("--seed", type=int, default=1)
+    _add_data_options(p)
+    p.set_defaults(func=run_tune_steps)
 
 
 def _add_train_reader(sub: argparse._SubParsersAction) -> None:
@@ -375,6 +388,20 @@ def run_tune_holds(args) -> int:
     _threads(args.threads)
     tune_holds(args.model, args.out, seed=args.seed, data_dir=args.data, cache_dir=args.cache,
                **_given(lambda_hold=args.lambda_hold, distil=args.distil, epochs=args.epochs))
+    return 0
+
+
+def run_tune_steps(args) -> int:
+    from stylecast.motion.errors import UserError
+
+    from .steps import tune_steps
+
+    _non_negative(lambda_step=args.lambda_step, distil=args.distil)
+    if args.out.suffix != ".safetensors":
+        raise UserError(f"--out {args.out} must name a .safetensors file, for example runs/tuned.safetensors")
+    _threads(args.threads)
+    tune_steps(args.model, args.out, seed=args.seed, data_dir=args.data, cache_dir=args.cache,
+               **_given(lambda_step=args.lambda_step, distil=args.distil, epochs=args.epochs))
     return 0
 
 

@@ -9,15 +9,20 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from stylecast.cli import main
+from stylecast.models import data as D
 from stylecast.models.content import ActionLabels
 from stylecast.models.metrics import step_heights, world_positions
 from stylecast.models.networks import to_channels
 from stylecast.models.representation import get_representation
+from stylecast.models.restyle import restyle_rotations
+from stylecast.models.restyler import Restyler
 from stylecast.models.steps import SLACK, StepTerm
 from stylecast.models.styles import STYLES
 from stylecast.models.train_multistyle import MultiStyleTrainer
 from stylecast.motion.errors import UserError
+from stylecast.motion.footlock import AUTO_FEET, feet_for
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
+from stylecast.motion.words import DEFAULT_HOP, stream_settings_of
 
 from .test_multistyle import _tiny_cfg, _tiny_words
 
@@ -150,3 +155,69 @@ def test_bad_step_options_are_refused_before_any_data_is_read(tmp_path, capsys, 
     code = main(["train", "--out", str(tmp_path / "run"), "--data", str(tmp_path / "nowhere"), *args])
     err = capsys.readouterr().err
     assert code == 2 and message in err and err.count("\n") == 1
+
+
+@pytest.mark.skipif(not D.default_data_dir().is_dir(), reason=f"the shared Bandai data is not at {D.default_data_dir()}")
+def test_the_shipped_multistyle_model_walks_elderly_with_lower_steps_than_the_input():
+    """Held-out normal walks served towards elderly (the stream, its own foot lock and pace):
+    the feet step lower than the input's, as real elderly walks do (0.79x real normal ones).
+    The model trained without the step term stepped 1.32x as high (the known-bad case)."""
+    model = Restyler.load("multistyle").for_target("elderly")
+    skeleton = D.bandai_skeleton(D.list_files())
+    files = [f for f in D.files_for_style(D.list_files(), "normal", "val") if f.action == "walk"]
+    heights_in, heights_out = [], []
+    for m in D.load_motions(files):
+        inp, roots = m.rotations.astype(np.float64), m.root_positions.astype(np.float64)
+        out, moved = restyle_rotations(inp, model.restyle_words, DEFAULT_HOP, contacts=feet_for(AUTO_FEET, model),
+                                       roots=roots, skeleton=skeleton, **stream_settings_of(model))
+        heights_in.append(step_heights(world_positions(inp, roots, skeleton)))
+        heights_out.append(step_heights(world_positions(out, moved, skeleton)))
+    assert len(files) >= 2
+    assert np.mean(heights_out) < np.mean(heights_in)
+
+
+def test_tune_steps_lowers_the_steps_and_keeps_the_reader(bandai_root, tmp_path):
+    """``stylecast tune-steps``, a short run (2 passes over 64 words of each style), on the
+    shipped file with its generator replaced by an untrained one (the identity: its restyles
+    step exactly as the input does, above the elderly cap, the known-bad case): held-out
+    normal walks sent to elderly step lower after it, and the reader's tensors and every
+    other entry are kept."""
+    from stylecast.models import checkpoint as ckpt
+    from stylecast.models.multistyle import MultiStyleConfig, make_generator
+    from stylecast.models.restyler import network_config, read_model
+    from stylecast.models.steps import tune_steps
+
+    data = bandai_root / "dataset-2" / "data"
+    path = ckpt.resolve("multistyle")
+    tensors, meta, rep = read_model(path)
+    torch.manual_seed(0)
+    untrained = make_generator(network_config(path, meta, MultiStyleConfig), rep.combine).state_dict()
+    source = ckpt.save_checkpoint(tmp_path / "untrained.safetensors",
+                                  {**tensors, **{"G." + k: v for k, v in untrained.items()}}, meta)
+    out = tune_steps(source, tmp_path / "tuned.safetensors", epochs=2, max_words=64, data_dir=data,
+                     log=lambda *_: None)
+    before, after = Restyler.load(source), Restyler.load(out)
+    words = D.load_wordset("normal", "val", data, hop=30)
+    walks = np.array([words.files[i].action == "walk" for i in words.file_index])
+    x = to_channels(torch.from_numpy(words.features(before.rep)[walks]))
+    elderly = torch.eye(len(STYLES))[[STYLES.index("elderly")] * len(x)]
+    zeros = np.zeros(walks.sum(), int)
+    term = two_style_term(words.words[walks], words.words[walks], zeros, zeros, 1)
+    with torch.no_grad():
+        y0, y1 = before.model(x, elderly), after.model(x, elderly)
+    assert torch.allclose(y0, x, atol=1e-6)  # untrained: the identity
+    assert term.heights(y1).mean() < 0.95 * term.heights(x).mean()
+    tuned_tensors, tuned_meta, _ = read_model(out)
+    assert all(np.array_equal(tuned_tensors[k], v) for k, v in tensors.items() if not k.startswith("G."))
+    assert tuned_meta["reader"] == meta["reader"] and tuned_meta["step_tuning"]["lambda_step"] == 1.0
+
+
+def test_tune_steps_refuses_a_pair_model_and_a_bad_out_in_one_sentence(capsys, tmp_path):
+    assert main(["tune-steps", "--model", "normal2exhausted", "--out", str(tmp_path / "t.safetensors")]) == 2
+    err = capsys.readouterr().err
+    assert "is not a multi-style model; tune-steps tunes one" in err and err.count("\n") == 1
+    assert main(["tune-steps", "--out", str(tmp_path / "t.bvh")]) == 2
+    err = capsys.readouterr().err
+    assert "must name a .safetensors file" in err and err.count("\n") == 1
+    assert main(["tune-steps", "--lambda-step", "-1", "--out", str(tmp_path / "t.safetensors")]) == 2
+    assert "--lambda-step must be 0 or more" in capsys.readouterr().err
