@@ -377,32 +377,29 @@ def run_train(args) -> int:
     return 0
 
 
-def run_tune_holds(args) -> int:
+def _run_tuning(args, tune, **weights) -> int:
+    """``tune-holds`` and ``tune-steps``: the weights checked, then ``tune(model, out, ...)``."""
     from stylecast.motion.errors import UserError
 
-    from .holds import tune_holds
-
-    _non_negative(lambda_hold=args.lambda_hold, distil=args.distil)
+    _non_negative(**weights)
     if args.out.suffix != ".safetensors":
         raise UserError(f"--out {args.out} must name a .safetensors file, for example runs/tuned.safetensors")
     _threads(args.threads)
-    tune_holds(args.model, args.out, seed=args.seed, data_dir=args.data, cache_dir=args.cache,
-               **_given(lambda_hold=args.lambda_hold, distil=args.distil, epochs=args.epochs))
+    tune(args.model, args.out, seed=args.seed, data_dir=args.data, cache_dir=args.cache,
+         **_given(**weights, epochs=args.epochs))
     return 0
+
+
+def run_tune_holds(args) -> int:
+    from .holds import tune_holds
+
+    return _run_tuning(args, tune_holds, lambda_hold=args.lambda_hold, distil=args.distil)
 
 
 def run_tune_steps(args) -> int:
-    from stylecast.motion.errors import UserError
-
     from .steps import tune_steps
 
-    _non_negative(lambda_step=args.lambda_step, distil=args.distil)
-    if args.out.suffix != ".safetensors":
-        raise UserError(f"--out {args.out} must name a .safetensors file, for example runs/tuned.safetensors")
-    _threads(args.threads)
-    tune_steps(args.model, args.out, seed=args.seed, data_dir=args.data, cache_dir=args.cache,
-               **_given(lambda_step=args.lambda_step, distil=args.distil, epochs=args.epochs))
-    return 0
+    return _run_tuning(args, tune_steps, lambda_step=args.lambda_step, distil=args.distil)
 
 
 def run_train_reader(args) -> int:
