@@ -33,6 +33,8 @@ from .losses import FPS
 from .networks import from_channels, to_channels
 from .representation_torch import DTYPE, TorchRepresentation, quat_to_matrix
 
+CM = 100.0  # PositionView's metres to the metrics' centimetres
+
 EPOCHS = 10
 BATCH = 64
 LR = 2e-3

@@ -26,10 +26,9 @@ import torch
 
 from stylecast.motion.humanoid import HUMANOID_BONES
 
-from .content import PositionView
+from .content import CM, PositionView
 from .metrics import HOLD_JOINTS, HOLD_SPEED
 
-CM = 100.0  # the view's metres to the metric's centimetres
 FEET = ("LeftFoot", "RightFoot")
 STANDING_FOOT_SPEED = 1.0  # cm per frame against the hips: below it, both feet, the input stands
 

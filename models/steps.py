@@ -17,7 +17,13 @@ height its restyle steps above ``ratio[a, s, t]`` times the input's, plus ``SLAC
 word's action a over style s's (dataset-2 records every action in every style), so the cap
 is learned from the data, not chosen: an elderly walk may step as high as elderly walks do
 against normal ones, an elderly run as elderly runs do. Steps lower than the cap are free:
-the term only stops a restyle stepping higher than its target style would.
+the term only stops a restyle stepping higher than its target style would. Heights are
+taken against the hips, as a word carries no root; the evaluation's are in the world.
+
+Measured (MODEL_CARD.md, "A step term"), in training and as ``tune_steps`` on the shipped
+file: the steps come right (towards elderly, walks 1.32 -> 0.97x the input's), but every
+target's steps fall, not only those above their cap, and the judges read five of six styles
+weaker. Off by default, and the shipped file is not tuned.
 """
 
 from __future__ import annotations
@@ -26,10 +32,9 @@ import torch
 
 from stylecast.motion.humanoid import HUMANOID_BONES
 
-from .content import PositionView
+from .content import CM, PositionView
 from .metrics import STEP_JOINTS, STEP_PERCENTILES
 
-CM = 100.0  # the view's metres to the metric's centimetres
 # Free height above the cap, in cm: a foot that stays on the floor "steps" a centimetre or
 # two by the hips' sway, and a ratio of that is noise, not a step.
 SLACK = 1.0
