@@ -17,7 +17,8 @@ under test without each stage around it (the foot lock, the correction low-pass,
 pelvis height, the style's pace), to show what each stage does, and with the other
 ``--feet`` than its own.
 
-Measures (``metrics.py`` for the arithmetic, ``judges.py`` for the classifiers), each
+Measures (``metrics.py`` for the arithmetic, ``judges.py`` for the classifiers,
+``eval_measures.py`` for a set of takes' summary; ``eval_plots.py`` draws the figures), each
 overall and per action:
 * style: share of windows a 7-style classifier (trained on all styles' training windows
   of world joint positions) judges as the target, and what else they were taken for;
@@ -55,12 +56,13 @@ import numpy as np
 
 from stylecast.motion.errors import UserError
 from stylecast.motion.footlock import AUTO_FEET, FEET, ContactSettings, feet_for
-from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.smoothing import CORRECTION_TAU
 from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, serving_word_end, stream_settings_of
 
 from . import data as D
 from .data import bandai_skeleton
+from .eval_measures import clip_measures, fmd_figures, mean_ratio, summarise, window_labels
+from .eval_plots import hand_foot_plot, style_space_plot
 from . import metrics as M
 from . import representation as R
 from .baselines import PostureRestyler
@@ -194,108 +196,6 @@ def build_variants(proposed: Restyler, extra: dict[str, str], posture: PostureRe
     return out
 
 
-# --- measuring one set of outputs -------------------------------------------------------------------
-
-def _clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_roots: np.ndarray, skeleton) -> dict:
-    p_in = M.world_positions(inp, roots, skeleton)
-    p_out = M.world_positions(out, out_roots, skeleton)
-    planted, held = M.planted(p_in), M.held(p_in)
-    jerk_in, jerk_out = M.jerk(p_in), M.jerk(p_out)
-    return {"jerk_in": jerk_in, "jerk_out": jerk_out,
-            "slide_in": M.slide_samples(p_in, planted), "slide_out": M.slide_samples(p_out, planted),
-            "skate_in": M.skate_samples(p_in), "skate_out": M.skate_samples(p_out),
-            "hold_in": M.hold_samples(p_in, held), "hold_out": M.hold_samples(p_out, held),
-            "step_in": M.step_heights(p_in), "step_out": M.step_heights(p_out),
-            "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
-            "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out),
-            "hinge_in": M.off_hinge(inp), "hinge_out": M.off_hinge(out)}
-
-
-def _mean_ratio(out: np.ndarray, inp: np.ndarray) -> float:
-    """Mean of ``out`` over mean of ``inp`` (samples of a measure), nan with no samples."""
-    return float(out.mean() / max(inp.mean(), 1e-9)) if inp.size and out.size else float("nan")
-
-
-def _window_labels(windows_per_take: list, labels: list[int]) -> np.ndarray:
-    """Each take's label repeated over its windows (``len`` of each entry), concatenated."""
-    return np.concatenate([np.full(len(w), a) for w, a in zip(windows_per_take, labels)])
-
-
-def _summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_action: list[np.ndarray],
-               actions_true: list[int], target: int, styles: list[str], actions: list[str],
-               windows_dynamics: list[np.ndarray] | None = None,
-               windows_short_action: list[np.ndarray] | None = None) -> dict:
-    jin = np.concatenate([c["jerk_in"] for c in per_clip])
-    jout = np.concatenate([c["jerk_out"] for c in per_clip])
-    g_in, g_out = M.group_means(jin), M.group_means(jout)
-    s_in = np.concatenate([c["slide_in"] for c in per_clip])
-    s_out = np.concatenate([c["slide_out"] for c in per_clip])
-    k_in = np.concatenate([c["skate_in"] for c in per_clip])
-    k_out = np.concatenate([c["skate_out"] for c in per_clip])
-    h_in = np.concatenate([c["hold_in"] for c in per_clip])
-    h_out = np.concatenate([c["hold_out"] for c in per_clip])
-    st_in = np.concatenate([c["step_in"] for c in per_clip])
-    st_out = np.concatenate([c["step_out"] for c in per_clip])
-    # Votes are (judges, windows): every figure read by the judges is given per judge and
-    # as the panel's mean (report.py reads the goals on the worst judge).
-    pred = np.concatenate(windows_pred, axis=1) if windows_pred else np.zeros((1, 0), int)
-
-    def kept_by_judge(votes: list[np.ndarray] | None) -> tuple[np.ndarray, list[float]]:
-        """Each judge's share of windows judged as their take's action (the action judges'
-        windows and the one-word ones differ in number)."""
-        if not votes:
-            return np.zeros((1, 0), int), []
-        act = np.concatenate(votes, axis=1)
-        truth = _window_labels([v.T for v in votes], actions_true)  # votes are (judges, windows)
-        return act, [float(np.mean(a == truth)) for a in act] if act.shape[1] else []
-
-    style_by_judge = [float(np.mean(p == target)) for p in pred] if pred.shape[1] else []
-    act, action_by_judge = kept_by_judge(windows_action)
-    _, short_action_by_judge = kept_by_judge(windows_short_action)
-    dyn = np.concatenate(windows_dynamics, axis=1) if windows_dynamics else np.zeros((0, 0), int)
-    dynamics_by_judge = [float(np.mean(d == target)) for d in dyn] if dyn.shape[1] else []
-    sync = [c["sync"] for c in per_clip if np.isfinite(c["sync"])]
-    sink = np.concatenate([c["penetration"] for c in per_clip])
-    peaks = [c["peak_jerk_ratio"] for c in per_clip]
-    hinge_in = np.concatenate([c["hinge_in"] for c in per_clip])
-    hinge_out = np.concatenate([c["hinge_out"] for c in per_clip])
-    return {
-        "windows": int(pred.shape[1]),
-        "judged_target": float(np.mean(style_by_judge)) if style_by_judge else float("nan"),
-        "judged_target_judges": style_by_judge,
-        "judged_as": {s: float(np.mean(pred == k)) for k, s in enumerate(styles)} if pred.shape[1] else {},
-        "action_kept": float(np.mean(action_by_judge)) if action_by_judge else float("nan"),
-        "action_kept_judges": action_by_judge,
-        "action_kept_short": float(np.mean(short_action_by_judge)) if short_action_by_judge else float("nan"),
-        "action_kept_short_judges": short_action_by_judge,
-        "judged_target_dynamics": float(np.mean(dynamics_by_judge)) if dynamics_by_judge else float("nan"),
-        "judged_target_dynamics_judges": dynamics_by_judge,
-        "action_taken_as": {a: float(np.mean(act == k)) for k, a in enumerate(actions)} if act.shape[1] else {},
-        "jerk_ratio": {g: g_out[g] / max(g_in[g], 1e-12) for g in g_in},
-        "jerk_cm_per_frame3": g_out,
-        "peak_jerk_ratio": float(max(peaks)) if peaks else float("nan"),  # the worst clip
-        "peak_jerk_ratio_median": float(np.median(peaks)) if peaks else float("nan"),
-        "slide_cm_per_frame": float(s_out.mean()) if s_out.size else float("nan"),
-        "slide_input_cm_per_frame": float(s_in.mean()) if s_in.size else float("nan"),
-        "slide_ratio": _mean_ratio(s_out, s_in),
-        "planted_frames": int(s_in.size // 2),
-        "skate_cm_per_frame": float(k_out.mean()) if k_out.size else float("nan"),
-        "skate_input_cm_per_frame": float(k_in.mean()) if k_in.size else float("nan"),
-        "skate_ratio": _mean_ratio(k_out, k_in),
-        "hold_cm_per_frame": float(h_out.mean()) if h_out.size else float("nan"),
-        "hold_input_cm_per_frame": float(h_in.mean()) if h_in.size else float("nan"),
-        "hold_ratio": _mean_ratio(h_out, h_in),
-        "step_height_cm": float(st_out.mean()) if st_out.size else float("nan"),
-        "step_height_input_cm": float(st_in.mean()) if st_in.size else float("nan"),
-        "step_height_ratio": _mean_ratio(st_out, st_in),
-        "timing_sync": float(np.mean(sync)) if sync else float("nan"),
-        "floor_penetration_cm": float(sink.mean()) if sink.size else float("nan"),
-        "floor_penetration_p99_cm": float(np.percentile(sink, 99)) if sink.size else float("nan"),
-        "off_hinge_p99_deg": float(np.percentile(hinge_out, 99)) if hinge_out.size else float("nan"),
-        "off_hinge_input_p99_deg": float(np.percentile(hinge_in, 99)) if hinge_in.size else float("nan"),
-    }
-
-
 # --- the evaluation ---------------------------------------------------------------------------------
 
 def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str] | None = None,
@@ -356,7 +256,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
         long = [judges.action_windows(m.rotations, m.root_positions, skeleton) for m in held[s]]
 
         def right(votes, windows):
-            truth = _window_labels(windows, [actions.index(m.file.action) for m in held[s]])
+            truth = window_labels(windows, [actions.index(m.file.action) for m in held[s]])
             return [float(np.mean(v == truth)) for v in votes]
 
         judge_check[s] = {"windows": int(len(w)), "action_windows": int(sum(len(x) for x in long)),
@@ -366,7 +266,7 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
                           "dynamics_accuracy_judges": [float(np.mean(v == k)) for v in judges.dynamics_votes(w)]}
     shared = dict(source=source, files=files, styles=styles, actions=actions, skeleton=skeleton, judges=judges, held=held,
                   real=real, judge_check=judge_check, per_style=per_style, cache_dir=cache_dir, hop=hop, log=log)
-    space = _style_space_plot(out, loaded, judges, real, styles)
+    space = style_space_plot(out, loaded, judges, real, styles)
     if len(targets) == 1:
         return _evaluate_target(proposed[targets[0]], out, variants or {}, t0, extra_plots=space, **shared)
     summary = {}
@@ -430,7 +330,8 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
                "torch_threads": _torch_threads()}
-    plots = _plots(out, clips, outputs_for_plot, skeleton) + list(extra_plots)
+    plots = hand_foot_plot(out, clips, outputs_for_plot, skeleton, ("input", SHIPPED_V1, "proposed"))
+    plots += list(extra_plots)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     from .report import write_report
 
@@ -460,8 +361,8 @@ class _RealReference:
         target_train = training_motions(files, [target], per_style, cache_dir)
         train_takes = [judge_windows(m.rotations, m.root_positions, skeleton) for m in target_train]
         features = judges.style_features(np.concatenate(real[target]))
-        labels = _window_labels(real[target], [actions.index(m.file.action) for m in held[target]])
-        train_labels = _window_labels(train_takes, [actions.index(m.file.action) for m in target_train])
+        labels = window_labels(real[target], [actions.index(m.file.action) for m in held[target]])
+        train_labels = window_labels(train_takes, [actions.index(m.file.action) for m in target_train])
         fmd = fmd_figures(judges.style_features(np.concatenate(train_takes)), train_labels, features, labels, actions)
         jerk, hold, skate, step = {}, {}, {}, {}
         for a in actions:
@@ -472,11 +373,11 @@ class _RealReference:
                 gs, gt = M.group_means(j[source]), M.group_means(j[target])
                 jerk[a] = {g: gt[g] / max(gs[g], 1e-12) for g in gs}
                 h = {s: np.concatenate([M.hold_samples(p, M.held(p)) for p in pos[s]]) for s in pos}
-                hold[a] = _mean_ratio(h[target], h[source])
+                hold[a] = mean_ratio(h[target], h[source])
                 k = {s: np.concatenate([M.skate_samples(p) for p in pos[s]]) for s in pos}
-                skate[a] = _mean_ratio(k[target], k[source])
+                skate[a] = mean_ratio(k[target], k[source])
                 st = {s: np.concatenate([M.step_heights(p) for p in pos[s]]) for s in pos}
-                step[a] = _mean_ratio(st[target], st[source])
+                step[a] = mean_ratio(st[target], st[source])
         return cls(features, labels, fmd, jerk, hold, skate, step)
 
 
@@ -502,7 +403,7 @@ def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: in
             out_roots = roots if moved is None else moved  # the pelvis height the lock set
         mask = switch_mask(len(res), hop, live, held_first)[skip:]
         inp, res, roots, out_roots = inp[skip:], res[skip:], roots[skip:], out_roots[skip:]
-        per_clip.append(_clip_measures(inp, res, roots, out_roots, skeleton))
+        per_clip.append(clip_measures(inp, res, roots, out_roots, skeleton))
         w = judge_windows(res, out_roots, skeleton)
         preds.append(judges.style_votes(w))
         acts.append(judges.action_votes(judges.action_windows(res, out_roots, skeleton)))
@@ -512,120 +413,19 @@ def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: in
         ds.append(frame_differences(res))
         masks.append(mask)
         outputs.append((res, out_roots))
-    summary = {"overall": _summarise(per_clip, preds, acts, act_idx, target_k, styles, actions, dyns, short_acts),
+    summary = {"overall": summarise(per_clip, preds, acts, act_idx, target_k, styles, actions, dyns, short_acts),
                "per_action": {}}
     for a in sorted(set(act_idx)):
         sel = [i for i, x in enumerate(act_idx) if x == a]
-        summary["per_action"][actions[a]] = _summarise([per_clip[i] for i in sel], [preds[i] for i in sel],
-                                                       [acts[i] for i in sel], [a] * len(sel), target_k, styles,
-                                                       actions, [dyns[i] for i in sel],
-                                                       [short_acts[i] for i in sel])
+        summary["per_action"][actions[a]] = summarise([per_clip[i] for i in sel], [preds[i] for i in sel],
+                                                      [acts[i] for i in sel], [a] * len(sel), target_k, styles,
+                                                      actions, [dyns[i] for i in sel],
+                                                      [short_acts[i] for i in sel])
     fmd = fmd_figures([np.concatenate(per_judge) for per_judge in zip(*feats)],
-                      _window_labels([f[0] for f in feats], act_idx), ref.features, ref.labels, actions)
+                      window_labels([f[0] for f in feats], act_idx), ref.features, ref.labels, actions)
     summary["overall"].update(fmd["overall"])
     summary["overall"]["fmd"] = float(np.mean(fmd["overall"]["fmd_judges"]))
     for a, gap in fmd["per_action"].items():
         summary["per_action"][a].update(gap)
     summary["overall"]["seam_ratio"] = seam_ratio(ds, masks)
     return summary, outputs
-
-
-def fmd_figures(feats: list[np.ndarray], labels: np.ndarray, feats_target: list[np.ndarray],
-                target_labels: np.ndarray, actions: list[str]) -> dict:
-    """Where a Frechet distance lies, per judge: windows' features ``feats`` (one (N, D) set
-    per judge, actions ``labels``) against the real held-out target windows'. Overall: the
-    distance, its mean part (the rest is the covariances'), and the distance with the windows
-    weighted to the real set's action mix (a restyle of the normal takes inherits their mix:
-    how much of the distance that alone is). Per action: ``metrics.feature_gap`` to the real
-    windows of the same action (a covariance of 64+ dimensions needs more windows than one
-    action has)."""
-    parts = [M.frechet_parts(f, t) if len(f) > 1 else (float("nan"),) * 2 for f, t in zip(feats, feats_target)]
-    weights = M.mix_weights(labels, target_labels)
-    overall = {"fmd_judges": [p[0] for p in parts], "fmd_mean_part_judges": [p[1] for p in parts],
-               "fmd_action_matched_judges": [M.frechet_distance(f, t, weights) if len(f) > 1 else float("nan")
-                                             for f, t in zip(feats, feats_target)]}
-    per_action = {actions[a]: {"feature_gap_judges": [M.feature_gap(f[labels == a], t[target_labels == a])
-                                                      for f, t in zip(feats, feats_target)]}
-                  for a in sorted(set(labels.tolist()) & set(target_labels.tolist()))}
-    return {"overall": overall, "per_action": per_action}
-
-
-def _plots(out: Path, clips, outputs: dict, skeleton) -> list[str]:
-    """A hand and a foot, input against each model's stream output, for one walk."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    walks = [i for i, m in enumerate(clips) if m.file.action == "walk"] or [0]
-    i = walks[0]
-    shown = {k: v[i] for k, v in outputs.items() if k in ("input", SHIPPED_V1, "proposed")}
-    hand, foot = HUMANOID_BONES.index("RightHand"), HUMANOID_BONES.index("LeftFoot")
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
-    colours = {"input": "0.4", SHIPPED_V1: "tab:red", "proposed": "tab:green"}
-    for name, (rotations, roots) in shown.items():
-        p = M.world_positions(rotations, roots, skeleton)
-        t = np.arange(len(p)) / D.FPS
-        axes[0].plot(t, p[:, hand, 1], color=colours[name], lw=0.9, label=name)
-        axes[1].plot(t, p[:, foot, 1], color=colours[name], lw=0.9, label=name)
-        axes[2].plot(t[1:], M.horizontal_speed(p, "LeftFoot"), color=colours[name], lw=0.9, label=name)
-    axes[0].set_ylabel("right hand height (cm)")
-    axes[1].set_ylabel("left ankle height (cm)")
-    axes[2].set_ylabel("left ankle horizontal\nspeed (cm/frame)")
-    axes[2].set_xlabel("seconds")
-    axes[0].legend(fontsize=7)
-    axes[0].set_title(f"{clips[i].file.name}, stream (as restyle writes it)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(out / "fig_hand_foot.png", dpi=90)
-    plt.close(fig)
-    return ["fig_hand_foot.png"]
-
-
-def pca_2d(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rows of ``x`` projected on their first two principal axes, and the share of the
-    variance each axis carries."""
-    c = np.asarray(x, np.float64) - np.mean(x, axis=0)
-    _, sv, vt = np.linalg.svd(c, full_matrices=False)
-    var = sv ** 2 / max(np.sum(sv ** 2), 1e-12)
-    return c @ vt[:2].T, var[:2]
-
-
-def _style_space_plot(out: Path, model, judges, real: dict, styles: list[str], per_style: int = 200) -> list[str]:
-    """The style space as a PNG: the model's style codes (when it has them) and the style
-    judge's pooled features of real held-out windows, each in its own 2-D PCA."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    codes = getattr(model, "style_codes", None)  # multi-style models only
-    fig, axes = plt.subplots(1, 2 if codes else 1, figsize=(11 if codes else 6, 5), squeeze=False)
-    axes = axes[0]
-    colours = plt.get_cmap("tab10")
-    emb, lab = [], []
-    for k, s in enumerate(styles):
-        w = np.concatenate(real[s])
-        pick = np.linspace(0, len(w) - 1, min(per_style, len(w))).astype(int)
-        emb.append(judges.style.embed(w[pick]))
-        lab.append(np.full(len(pick), k))
-    xy, var = pca_2d(np.concatenate(emb))
-    lab = np.concatenate(lab)
-    ax = axes[-1]
-    for k, s in enumerate(styles):
-        ax.scatter(*xy[lab == k].T, s=6, alpha=0.5, color=colours(k), label=s)
-    ax.set_title(f"real held-out windows, style judge's features\n(PCA: {100 * var[0]:.0f} % + {100 * var[1]:.0f} % of the variance)",
-                 fontsize=9)
-    ax.legend(fontsize=7, markerscale=2)
-    if codes:
-        table = codes()
-        cxy, cvar = pca_2d(table)
-        names = list(model.styles)
-        for k, s in enumerate(names):
-            axes[0].scatter(*cxy[k], s=60, color=colours(styles.index(s) if s in styles else k))
-            axes[0].annotate(s, cxy[k], fontsize=8, xytext=(4, 4), textcoords="offset points")
-        axes[0].set_title(f"{model.name}: the {len(names)} style codes\n(PCA: {100 * cvar[0]:.0f} % + "
-                          f"{100 * cvar[1]:.0f} % of the variance)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(out / "fig_style_space.png", dpi=90)
-    plt.close(fig)
-    return ["fig_style_space.png"]

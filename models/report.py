@@ -326,7 +326,7 @@ def _seam_lines(m: dict) -> list[str]:
 
 def fmd_lines(m: dict) -> list[str]:
     """The section on where the Frechet distance lies: mean against spread, the action mix,
-    and each action's gap (``eval.fmd_figures``)."""
+    and each action's gap (``eval_measures.fmd_figures``)."""
     real = m.get("fmd_floor_parts")
     if not real:  # a report from before these figures
         return []

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from stylecast.models import metrics as M
-from stylecast.models.eval import _clip_measures, seam_ratio, switch_mask
+from stylecast.models.eval import seam_ratio, switch_mask
+from stylecast.models.eval_measures import clip_measures
 from stylecast.motion import rotations as rot
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
@@ -34,7 +35,7 @@ def jittered(q: np.ndarray, degrees: float, seed: int = 1) -> np.ndarray:
 
 def test_identity_restyle_scores_the_inputs_values():
     q, roots = smooth_motion()
-    m = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    m = clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
     g_in, g_out = M.group_means(m["jerk_in"]), M.group_means(m["jerk_out"])
     assert all(g_out[g] == pytest.approx(g_in[g]) for g in g_in)
     np.testing.assert_allclose(m["slide_out"], m["slide_in"])
@@ -63,10 +64,10 @@ def test_a_one_frame_pop_fails_the_peak_jerk_though_the_mean_jerk_passes():
     sk = humanoid_skeleton_default()
     popped = q.copy()
     popped[300, FOOT] = rot.multiply(q[300, FOOT], rot.exp_map(np.array([0.0, np.radians(30.0), 0.0])))
-    m = _clip_measures(q, popped, roots, roots.copy(), sk)
+    m = clip_measures(q, popped, roots, roots.copy(), sk)
     assert M.group_means(m["jerk_out"])["all"] / M.group_means(m["jerk_in"])["all"] < 1.10  # the mean passes
     assert m["peak_jerk_ratio"] > 1.5  # the pop fails
-    assert _clip_measures(q, q.copy(), roots, roots.copy(), sk)["peak_jerk_ratio"] == pytest.approx(1.0)
+    assert clip_measures(q, q.copy(), roots, roots.copy(), sk)["peak_jerk_ratio"] == pytest.approx(1.0)
 
 
 def planted_foot_positions(frames: int = 120, slide_cm: float = 0.0) -> np.ndarray:
@@ -136,7 +137,7 @@ def test_step_height_reads_how_high_a_foot_swings_and_nothing_for_a_standing_one
     assert step(_stepping_foot(clearance_cm=24.0)) == pytest.approx(2 * step(_stepping_foot(clearance_cm=12.0)))
     assert step(planted_foot_positions()) == pytest.approx(0.0, abs=1e-9)
     q, roots = smooth_motion()
-    m = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    m = clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
     np.testing.assert_array_equal(m["step_out"], m["step_in"])
 
 
@@ -239,16 +240,16 @@ def test_a_judge_panel_with_one_fooled_judge_fails_the_style_goal():
     """The known-bad case of the judge panel: two judges call every window the target, a
     third only a quarter of them. The mean reads 75 %, the goal is read on the worst
     judge (25 %); the same holds for the action judges and, the other way up, for FMD."""
-    from stylecast.models.eval import _summarise
+    from stylecast.models.eval_measures import summarise
     from stylecast.models.report import goal_values, goals_met
 
     q, roots = smooth_motion()
-    clip = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    clip = clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
     target, action = 2, 1
     style_votes = np.array([[target] * 8, [target] * 8, [target, target, 0, 0, 0, 0, 0, 0]])
     action_votes = np.array([[action] * 8, [action] * 8, [action] * 8])
-    overall = _summarise([clip], [style_votes], [action_votes], [action], target, ["a", "b", "c"],
-                         ["x", "y", "z"])
+    overall = summarise([clip], [style_votes], [action_votes], [action], target, ["a", "b", "c"],
+                        ["x", "y", "z"])
     assert overall["judged_target_judges"] == [1.0, 1.0, 0.25]
     assert overall["judged_target"] == pytest.approx(0.75)
     assert overall["judged_as"]["c"] == pytest.approx(0.75) and overall["judged_as"]["a"] == pytest.approx(0.25)
@@ -260,7 +261,7 @@ def test_a_judge_panel_with_one_fooled_judge_fails_the_style_goal():
     assert not met["judged_target"] and not met["fmd_ratio"] and met["action_kept"]
     # With the fooled judge replaced by one that agrees, the same windows pass.
     style_votes[2] = target
-    overall = _summarise([clip], [style_votes], [action_votes], [action], target, ["a", "b", "c"], ["x", "y", "z"])
+    overall = summarise([clip], [style_votes], [action_votes], [action], target, ["a", "b", "c"], ["x", "y", "z"])
     overall.update(seam_ratio_relative=1.0, fmd_judges=[2.0, 2.0, 3.0])
     assert goals_met(overall, [1.0, 1.0, 3.0])["judged_target"]
     assert "judged_target_dynamics" not in goals_met(overall, [1.0, 1.0, 3.0])  # no dynamics judge ran
@@ -270,23 +271,23 @@ def test_a_posture_only_restyle_passes_the_full_judges_and_fails_the_dynamics_go
     """The dynamics judges' known-bad case: the full judges call every window the target
     (a posture shift reads so to them), the velocity-only judges see the input's motion
     and call half of the windows the source style, one of them all."""
-    from stylecast.models.eval import _summarise
+    from stylecast.models.eval_measures import summarise
     from stylecast.models.report import goals_met
 
     q, roots = smooth_motion()
-    clip = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    clip = clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
     target, source, action = 2, 0, 1
     full = np.full((3, 8), target)
     dynamics = np.array([[target] * 4 + [source] * 4, [source] * 8])
-    overall = _summarise([clip], [full], [np.full((3, 8), action)], [action], target, ["a", "b", "c"],
-                         ["x", "y", "z"], [dynamics])
+    overall = summarise([clip], [full], [np.full((3, 8), action)], [action], target, ["a", "b", "c"],
+                        ["x", "y", "z"], [dynamics])
     assert overall["judged_target"] == 1.0 and overall["judged_target_dynamics_judges"] == [0.5, 0.0]
     overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0, 1.0, 1.0])
     met = goals_met(overall, [1.0, 1.0, 1.0])
     assert met["judged_target"] and not met["judged_target_dynamics"]
     # Dynamics judges that see the target's motion let it pass.
-    overall = _summarise([clip], [full], [np.full((3, 8), action)], [action], target, ["a", "b", "c"],
-                         ["x", "y", "z"], [np.full((2, 8), target)])
+    overall = summarise([clip], [full], [np.full((3, 8), action)], [action], target, ["a", "b", "c"],
+                        ["x", "y", "z"], [np.full((2, 8), target)])
     overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0, 1.0, 1.0])
     assert goals_met(overall, [1.0, 1.0, 1.0])["judged_target_dynamics"]
 
@@ -514,17 +515,17 @@ def test_the_action_goal_is_read_on_the_2s_judges_and_the_one_word_reading_stand
     """The 2 s action windows and the one-word windows of a take differ in number; each is
     scored against the take's action, and a one-word panel that misses fails its own
     (stricter) row without touching the issue's."""
-    from stylecast.models.eval import _summarise
+    from stylecast.models.eval_measures import summarise
     from stylecast.models.report import goal_values, goals_met
 
     q, roots = smooth_motion()
-    clip = _clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    clip = clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
     action = 1
     style_votes = np.full((2, 8), 2)
     long = np.full((2, 3), action)  # three 2 s windows, all kept
     short = np.array([[action] * 8, [action] * 6 + [0, 0]])  # the second judge misses a quarter
-    overall = _summarise([clip], [style_votes], [long], [action], 2, ["a", "b", "c"], ["x", "y", "z"],
-                         windows_short_action=[short])
+    overall = summarise([clip], [style_votes], [long], [action], 2, ["a", "b", "c"], ["x", "y", "z"],
+                        windows_short_action=[short])
     assert overall["action_kept_judges"] == [1.0, 1.0]
     assert overall["action_kept_short_judges"] == [1.0, 0.75]
     overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0, 1.0])
@@ -618,15 +619,15 @@ def test_off_hinge_reads_a_sideways_elbow_a_twisted_knee_and_a_joint_past_straig
 
 
 def test_the_hinge_goal_is_read_beyond_the_input_s_own(tmp_path):
-    from stylecast.models.eval import _summarise
+    from stylecast.models.eval_measures import summarise
     from stylecast.models.report import goal_values, goals_met
 
     q, roots = smooth_motion()
     q = hinged_pose(len(q))
     bent = jittered(q, 3.0)  # every bone a few degrees off, the hinges too
-    clips = [_clip_measures(q, out, roots, roots.copy(), humanoid_skeleton_default()) for out in (q.copy(), bent)]
+    clips = [clip_measures(q, out, roots, roots.copy(), humanoid_skeleton_default()) for out in (q.copy(), bent)]
     for clip, met in zip(clips, (True, False)):
-        overall = _summarise([clip], [np.zeros((1, 4), int)], [np.zeros((1, 4), int)], [0], 0, ["a"], ["x"])
+        overall = summarise([clip], [np.zeros((1, 4), int)], [np.zeros((1, 4), int)], [0], 0, ["a"], ["x"])
         overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0])
         assert (goal_values(overall, [1.0])["off_hinge_excess"] <= 1.0) == met
         assert goals_met(overall, [1.0])["off_hinge_excess"] == met

@@ -364,7 +364,7 @@ def test_eval_refuses_an_unknown_target_and_needs_one_for_a_multistyle_model(tmp
 
 
 def test_pca_projection_keeps_the_main_axis():
-    from stylecast.models.eval import pca_2d
+    from stylecast.models.eval_plots import pca_2d
 
     rng = np.random.default_rng(0)
     x = np.c_[rng.normal(size=200) * 10, rng.normal(size=200), rng.normal(size=200) * 0.1]
