@@ -43,16 +43,21 @@ class ContactSettings:
     pelvis_flight_tau: float = 8.0
     flight_memory: int = 30
     # Stance: the most a planted foot stands beside the input's (cm; 0: on the input's
-    # own ankle) and how fast the offset may move while
-    # the foot is locked (cm/frame; a planted input foot moves 0.03-0.08, so this adds at
-    # most a third to its slide).
+    # own ankle) and how fast the offset may move while the foot is locked (cm/frame;
+    # 0: not at all, the foot stays where it landed beside the input's until it lifts).
+    # None, because the restyled stance wanders while a performer stands still (the
+    # multistyle model's held-out raises and waves towards active: 1-1.5 cm and 3-5
+    # degrees standard deviation over a take): following it at 0.01 cm and 0.04 degrees a
+    # frame, the previous setting, moved standing feet 0.011-0.013 cm a frame against the
+    # input's 0.005 (2.2-2.8x in the standing actions of every stance style); a dead band
+    # of 4 cm and 10 degrees before following still left 1.4-1.8x; none leaves 1.00.
     stance_cap: float = 0.0
-    stance_rate: float = 0.01
+    stance_rate: float = 0.0
     # ...and the foot's turn about the vertical against the input's (toes out or in):
-    # at most this many degrees, moving at most this fast while locked (0.04 degrees a
-    # frame moves the ball of a 15 cm foot 0.01 cm).
+    # at most this many degrees, moving at most this fast while locked (degrees a frame;
+    # 0.04 would move the ball of a 15 cm foot 0.01 cm).
     turn_cap: float = 30.0
-    turn_rate: float = 0.04
+    turn_rate: float = 0.0
     # A foot's heading is only as sure as its length on the floor (ankle to ball, cm): a
     # foot pointing down (toe-off, a swing about to land) has none, and following it turned
     # a landing foot by 54 degrees in one frame (a held-out walk). The turn follows a foot
@@ -77,9 +82,8 @@ class ContactSettings:
 # both). The multi-style model reads most as its targets so (78.5 % on the judges' mean
 # over six against 57.8 %), but for elderly and exhausted (its ``feet_of_style``). For the
 # pair default "input" reads better since its hips follow within 2 frames (88.1 % against
-# 75.4 % on the judges' mean, action 89.5 against 86.8 %), and while planted the stance
-# creeps 0.011-0.012 cm a frame in the standing actions against the input's 0.005
-# (2.2-2.6x). The stance's hips settle slower (8 frames): with 2 the
+# 75.4 % on the judges' mean, action 89.5 against 86.8 %, measured when a planted foot
+# still crept into a new stance: ``stance_rate``). The stance's hips settle slower (8 frames): with 2 the
 # multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %) and popped more in
 # five styles of six, though active, elderly, exhausted and masculine gained 7-16 points.
 # "auto", the default, takes the model's own (``Restyler.feet``; figures in

@@ -6,9 +6,10 @@ to 23 %, nearly all of it in the standing actions. With the stance kept, the tar
 input's ankle plus a horizontal offset (where the restyled foot stands beside the input's)
 and the foot turns about the vertical as the restyled one; the knee keeps its restyled
 plane. While a foot is free the offsets follow the restyled leg; while it is locked they
-move at most ``stance_rate`` cm (``turn_rate`` degrees) a frame, so a planted foot lands
-where the restyled leg put it and stays there (it may settle into a new stance, never
-visibly slide). A foot's heading counts in proportion to its length on the floor: a foot
+move at most ``stance_rate`` cm (``turn_rate`` degrees) a frame, by default not at all, so
+a planted foot lands where the restyled leg put it and stays there beside the input's
+until it lifts: a standing performer's stance changes by a step, as a real one's does (a
+new style chosen live while standing shows in the feet at the next step). A foot's heading counts in proportion to its length on the floor: a foot
 pointing down has none to follow. Through a stream's first fade-in from pass-through
 (where it has one: ``words.BlendSettings.start_restyled``) the targets are taken at the
 share the fade heads for, so a foot planted at the start stands in the restyled stance
