@@ -61,7 +61,7 @@ from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, serving_wor
 
 from . import data as D
 from .data import bandai_skeleton
-from .eval_measures import clip_measures, fmd_figures, mean_ratio, summarise, window_labels
+from .eval_measures import clip_measures, fmd_figures, mean_ratio, summarise, window_labels, worst_actions
 from .eval_plots import hand_foot_plot, style_space_plot
 from . import metrics as M
 from . import representation as R
@@ -421,6 +421,7 @@ def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: in
                                                       [acts[i] for i in sel], [a] * len(sel), target_k, styles,
                                                       actions, [dyns[i] for i in sel],
                                                       [short_acts[i] for i in sel])
+    summary["overall"]["worst_action"] = worst_actions(summary["per_action"])
     fmd = fmd_figures([np.concatenate(per_judge) for per_judge in zip(*feats)],
                       window_labels([f[0] for f in feats], act_idx), ref.features, ref.labels, actions)
     summary["overall"].update(fmd["overall"])

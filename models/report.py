@@ -22,11 +22,18 @@ GOALS = (
     ("largest one-frame jerk / input's, worst clip (pops; stricter than the issue)", "peak_jerk_ratio",
      lambda v, m: v <= 1.5, "<= 1.5"),
     ("planted-foot slide / input's", "slide_ratio", lambda v, m: v <= 1.5, "<= 1.5"),
+    # Stricter than the issue (eval_measures.worst_actions): the same ratio in the action
+    # where it is worst, so a fault of a few actions cannot hide in the mean (standing feet
+    # that crept 2.2-2.8x the input's did). Absent from reports before it.
+    ("planted-foot slide / input's, worst action (stricter than the issue)", "slide_ratio_worst_action",
+     lambda v, m: v <= 1.5, "<= 1.5"),
     # Stricter than the issue (metrics.skate_samples): skating read on the output's own
     # contacts, as an instrument that never sees the input would, so a heel dragged along the
     # floor before the input's foot lands counts. Absent from reports before it.
     ("foot skating on the output's own contacts / input's (stricter than the issue)", "skate_ratio",
      lambda v, m: v <= 1.5, "<= 1.5"),
+    ("foot skating on the output's own contacts / input's, worst action (stricter than the issue)",
+     "skate_ratio_worst_action", lambda v, m: v <= 1.5, "<= 1.5"),
     # Stricter than the issue (metrics.held): where the input holds a hand or the head still,
     # the output's speed there over the input's. Absent from reports before it.
     ("held hands and head: speed / input's where the input holds still (stricter than the issue)",
@@ -79,6 +86,8 @@ def goal_values(overall: dict, floors: list[float]) -> dict:
     for key in ("hold_ratio", "skate_ratio"):  # absent from reports before these measures
         if key in overall:
             values[key] = overall[key]
+    for key, worst in overall.get("worst_action", {}).items():  # absent from reports before it
+        values[f"{key}_worst_action"] = worst["value"]
     if overall.get("action_kept_short_judges"):
         values["action_kept_short"] = min(overall["action_kept_short_judges"])
     if overall.get("judged_target_dynamics_judges"):

@@ -631,3 +631,31 @@ def test_the_hinge_goal_is_read_beyond_the_input_s_own(tmp_path):
         overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0])
         assert (goal_values(overall, [1.0])["off_hinge_excess"] <= 1.0) == met
         assert goals_met(overall, [1.0])["off_hinge_excess"] == met
+
+
+def test_a_slide_confined_to_a_few_actions_fails_the_worst_action_goal():
+    """The known-bad case the overall ratio hid: planted feet sliding 2.5x the input's in
+    the standing actions only, the overall slide under the bar. Read on the worst action it
+    fails, and names the action; a restyle that slides nowhere passes."""
+    from stylecast.models.eval_measures import summarise, worst_actions
+    from stylecast.models.report import goal_values, goals_met
+
+    q, roots = smooth_motion()
+    clip = clip_measures(q, q.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    target, action = 2, 1
+    overall = summarise([clip], [np.full((3, 8), target)], [np.full((3, 8), action)], [action], target,
+                        ["a", "b", "c"], ["x", "y", "z"])
+    overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0, 1.0, 1.0], slide_ratio=1.3)
+    per_action = {"walk": {"slide_ratio": 1.1, "skate_ratio": 1.2}, "wave": {"slide_ratio": 2.5, "skate_ratio": 1.0},
+                  "raise": {"slide_ratio": float("nan"), "skate_ratio": 1.4}}  # (no planted frame: no figure)
+    overall["worst_action"] = worst_actions(per_action)
+    assert overall["worst_action"] == {"slide_ratio": {"value": 2.5, "action": "wave"},
+                                       "skate_ratio": {"value": 1.4, "action": "raise"}}
+    met = goals_met(overall, [1.0, 1.0, 1.0])
+    assert met["slide_ratio"] and not met["slide_ratio_worst_action"] and met["skate_ratio_worst_action"]
+    per_action["wave"]["slide_ratio"] = 1.0
+    overall["worst_action"] = worst_actions(per_action)
+    assert goal_values(overall, [1.0, 1.0, 1.0])["slide_ratio_worst_action"] == 1.1
+    assert goals_met(overall, [1.0, 1.0, 1.0])["slide_ratio_worst_action"]
+    del overall["worst_action"]  # a report written before the reading: no such goal, no failure
+    assert "slide_ratio_worst_action" not in goals_met(overall, [1.0, 1.0, 1.0])
