@@ -184,6 +184,36 @@ def test_the_shipped_model_passes_a_normal_performance_told_normal_through():
     assert _max_degrees(r.with_performer_style("elderly").restyle_words(words), words) > 5.0
 
 
+@needs_data
+def test_the_shipped_models_standing_feet_stay_where_they_landed():
+    """A held-out standing take (a wave) restyled towards youthful through the stream, with
+    the model's own lock (the stance): the planted feet move no more than the input's. The
+    known-bad case beside it, the stance following the restyled legs at 0.01 cm and 0.04
+    degrees a frame while planted (the previous setting): 2.3x the input's here."""
+    from stylecast.models import data as D, metrics as M
+    from stylecast.models.restyle import restyle_rotations
+    from stylecast.motion.footlock import AUTO_FEET
+    from stylecast.motion.words import DEFAULT_HOP, stream_settings_of
+
+    files = D.list_files(D.default_data_dir())
+    take = [f for f in D.files_for_style(files, "normal", "val") if f.action == "wave-both-hands"][0]
+    m, skeleton = D.load_motions([take])[0], D.bandai_skeleton(files)
+    q, roots = m.rotations.astype(np.float64), m.root_positions.astype(np.float64)
+    r = Restyler.load("multistyle").for_target("youthful").with_performer_style("normal")
+    p_in = M.world_positions(q, roots, skeleton)
+    planted = M.planted(p_in)
+    slides = {}
+    for name, contacts in (("still", feet_for(AUTO_FEET, r)),
+                           ("creeping", replace(feet_for(AUTO_FEET, r), stance_rate=0.01, turn_rate=0.04))):
+        out, moved = restyle_rotations(q, r.restyle_words, DEFAULT_HOP, contacts=contacts, roots=roots,
+                                       skeleton=skeleton, **stream_settings_of(r))
+        p_out = M.world_positions(out, roots if moved is None else moved, skeleton)
+        slides[name] = M.slide_samples(p_out, planted).mean() / M.slide_samples(p_in, planted).mean()
+    assert feet_for(AUTO_FEET, r).stance_cap > 0  # the stance lock, the model's own towards youthful
+    assert slides["still"] < 1.1
+    assert slides["creeping"] > 1.5
+
+
 # --- the style names ---------------------------------------------------------------------------
 
 def test_style_mixes_parse_normalise_and_refuse_unknown_names():
