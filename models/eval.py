@@ -61,7 +61,8 @@ from stylecast.motion.words import DEFAULT_HOP, WORD_LENGTH as WORD, serving_wor
 
 from . import data as D
 from .data import bandai_skeleton
-from .eval_measures import clip_measures, fmd_figures, mean_ratio, summarise, window_labels, worst_actions
+from .eval_measures import (clip_measures, fmd_figures, gait_outside, mean_ratio, summarise, window_labels,
+                            worst_actions)
 from .eval_plots import hand_foot_plot, style_space_plot
 from . import metrics as M
 from . import representation as R
@@ -326,6 +327,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "fmd_floor_parts": ref.fmd,
                "real_target_jerk_ratio": ref.jerk, "real_target_hold_ratio": ref.hold,
                "real_target_skate_ratio": ref.skate, "real_target_step_ratio": ref.step,
+               "real_target_gait_range": ref.gait,
                "travel_ceiling": ceiling, "tempo_ceiling": tempo,
                "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
@@ -346,7 +348,10 @@ class _RealReference:
     features of the real held-out target windows (per judge) and their actions, FMD between
     real training and held-out target windows (the floor), and the jerk, holds, skating and
     step height of real target-style clips over real source-style clips of the same action,
-    per action (a take's own holds: real motion has no input to hold still against)."""
+    per action (a take's own holds: real motion has no input to hold still against); and
+    the range of each gait statistic over every real target-style take of each action,
+    training and held-out (``gait``: {action: {name: (lowest, highest)}}: what any real
+    performer of the style did)."""
 
     features: list
     labels: np.ndarray
@@ -355,6 +360,7 @@ class _RealReference:
     hold: dict
     skate: dict
     step: dict
+    gait: dict
 
     @classmethod
     def of(cls, target, source, files, actions, skeleton, judges, held, real, per_style, cache_dir) -> "_RealReference":
@@ -378,7 +384,13 @@ class _RealReference:
                 skate[a] = mean_ratio(k[target], k[source])
                 st = {s: np.concatenate([M.step_heights(p) for p in pos[s]]) for s in pos}
                 step[a] = mean_ratio(st[target], st[source])
-        return cls(features, labels, fmd, jerk, hold, skate, step)
+        gait = {}
+        for a in actions:
+            takes = [M.gait_statistics(m.rotations, M.world_positions(m.rotations, m.root_positions, skeleton))
+                     for m in target_train + held[target] if m.file.action == a]
+            if takes:
+                gait[a] = {k: (min(t[k] for t in takes), max(t[k] for t in takes)) for k in M.GAIT_STATISTICS}
+        return cls(features, labels, fmd, jerk, hold, skate, step, gait)
 
 
 def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: int, skeleton, judges,
@@ -421,6 +433,9 @@ def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: in
                                                       [acts[i] for i in sel], [a] * len(sel), target_k, styles,
                                                       actions, [dyns[i] for i in sel],
                                                       [short_acts[i] for i in sel])
+    for a, figures in summary["per_action"].items():
+        if a in ref.gait:
+            figures["gait_outside"], figures["gait_outside_of"] = gait_outside(figures["gait"], ref.gait[a])
     summary["overall"]["worst_action"] = worst_actions(summary["per_action"])
     fmd = fmd_figures([np.concatenate(per_judge) for per_judge in zip(*feats)],
                       window_labels([f[0] for f in feats], act_idx), ref.features, ref.labels, actions)

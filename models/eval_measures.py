@@ -15,7 +15,8 @@ from . import metrics as M
 # input's in the six standing actions while the multistyle model's overall slide read
 # 1.21-1.32, under the 1.5 bar, for several releases (MODEL_CARD.md, "Standing feet stay
 # where they landed").
-WORST_ACTION_KEYS = ("slide_ratio", "skate_ratio")
+# ``gait_outside``: how far a gait statistic lies outside the real target takes' range (1 inside).
+WORST_ACTION_KEYS = ("slide_ratio", "skate_ratio", "gait_outside")
 
 
 def clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_roots: np.ndarray, skeleton) -> dict:
@@ -33,7 +34,8 @@ def clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_roots
             "step_in": M.step_heights(p_in), "step_out": M.step_heights(p_out),
             "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
             "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out),
-            "hinge_in": M.off_hinge(inp), "hinge_out": M.off_hinge(out)}
+            "hinge_in": M.off_hinge(inp), "hinge_out": M.off_hinge(out),
+            "gait_in": M.gait_statistics(inp, p_in), "gait_out": M.gait_statistics(out, p_out)}
 
 
 def mean_ratio(out: np.ndarray, inp: np.ndarray) -> float:
@@ -121,6 +123,8 @@ def summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_acti
         "floor_penetration_p99_cm": float(np.percentile(sink, 99)) if sink.size else float("nan"),
         "off_hinge_p99_deg": float(np.percentile(hinge_out, 99)) if hinge_out.size else float("nan"),
         "off_hinge_input_p99_deg": float(np.percentile(hinge_in, 99)) if hinge_in.size else float("nan"),
+        "gait": {k: float(np.mean([c["gait_out"][k] for c in per_clip])) for k in M.GAIT_STATISTICS},
+        "gait_input": {k: float(np.mean([c["gait_in"][k] for c in per_clip])) for k in M.GAIT_STATISTICS},
     }
 
 
@@ -144,6 +148,21 @@ def fmd_figures(feats: list[np.ndarray], labels: np.ndarray, feats_target: list[
     return {"overall": overall, "per_action": per_action}
 
 
+def gait_outside(gait: dict, ranges: dict) -> tuple[float, str]:
+    """A set's mean gait statistics (``summarise``'s ``gait``) and the real target takes'
+    range of each ({name: (lowest, highest)}, the same action; every one above 0) -> how far
+    the statistic furthest outside its range lies, as a factor (1 inside; 1.4: 40 % past
+    the highest, or the lowest over 1.4), and its name ("" inside). A stance width at or
+    under 0 (feet crossed on average) reads 100: as far out as a figure here goes."""
+    worst, name = 1.0, ""
+    for k, (low, high) in ranges.items():
+        v = gait[k]
+        factor = v / high if v > high else low / max(v, 0.01 * low) if v < low else 1.0
+        if factor > worst:
+            worst, name = float(factor), k
+    return worst, name
+
+
 def worst_actions(per_action: dict) -> dict:
     """Per-action summaries (``summarise`` of each action's takes, by action name) -> for
     each of ``WORST_ACTION_KEYS`` with a figure, the largest of any action and which:
@@ -154,4 +173,6 @@ def worst_actions(per_action: dict) -> dict:
         if figures:
             action = max(figures, key=figures.get)
             out[key] = {"value": float(figures[action]), "action": action}
+            if per_action[action].get(f"{key}_of"):  # which of several figures (``gait_outside``)
+                out[key]["of"] = per_action[action][f"{key}_of"]
     return out

@@ -24,6 +24,16 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   takes' against real source takes'. An elderly walk shuffles (real held-out elderly walks
   step 11.0 cm, normal ones 14.0); a restyle that bends the swing leg more steps higher, which
   no other measure here and no judge flagged (the multistyle model towards elderly: 18.6 cm).
+* gait statistics (``GAIT_STATISTICS``): a take's hips twist (how far the hips' facing
+  swings about its one-second mean, degrees), stance width (the ankles' mean distance
+  apart across the hips' facing, signed so crossed feet count against it, cm) and arm
+  swing (how far the hands swing forward and back about their one-second mean, against the
+  hips, cm), read against the range of real takes of the target style and the same action
+  (``eval_measures.gait_outside``). Each is something a viewer sees and a judge may not
+  weigh: a restyle towards active swung the hips 11.9 degrees in held-out walks, past every
+  real active walk (5.5-8.4; the judges read 70 % of those windows as turning walks), and the
+  stance lock put a feminine walk's ankles 3.0 cm apart, crossed in 9 % of frames, where
+  real feminine walks keep 8.1-8.3.
 * floor penetration: how far a foot joint of the output sinks below the lowest the same
   joint goes in the input (the input's floor contact), per frame.
 * timing sync: Pearson correlation of per-frame body speed (mean over joints of speed
@@ -179,6 +189,69 @@ def step_heights(positions: np.ndarray) -> np.ndarray:
     its height over its 5th (about 0 for a foot that stays on the floor)."""
     low, high = np.percentile(positions[:, _index(STEP_JOINTS), 1], STEP_PERCENTILES, axis=0)
     return high - low
+
+
+# Seconds of the running mean the swinging statistics are read about (a gait cycle is
+# 0.7-1.2 s in the data): what is left is the swing, not the take's turns or drift.
+GAIT_MEAN_SECONDS = 1.0
+
+
+def _about_running_mean(x: np.ndarray, fps: float = 60.0) -> np.ndarray:
+    """(T, ...) -> x less its centred running mean over ``GAIT_MEAN_SECONDS``, on the frames
+    where a whole window fits (a take shorter than that: x less its mean)."""
+    n = int(round(GAIT_MEAN_SECONDS * fps))
+    if len(x) < n:
+        return x - x.mean(axis=0)
+    c = np.cumsum(np.concatenate([np.zeros((1, *x.shape[1:])), x], axis=0), axis=0)
+    mean = (c[n:] - c[:-n]) / n  # windows starting at 0 .. T-n
+    return x[n // 2: n // 2 + len(mean)] - mean
+
+
+def hips_yaw(rotations: np.ndarray) -> np.ndarray:
+    """(T, J, 4) -> (T,) the hips' facing about the vertical, radians, unwrapped
+    (``representation.word_heading`` of each frame)."""
+    from .representation import word_heading
+
+    return np.unwrap(word_heading(np.asarray(rotations, np.float64)[:, None]))
+
+
+def _across_and_along(rotations: np.ndarray, positions: np.ndarray, joint: str) -> tuple[np.ndarray, np.ndarray]:
+    """A joint's position against the hips in the hips' facing: (T,) across (towards the
+    humanoid's left) and (T,) along (forward), cm."""
+    yaw = hips_yaw(rotations)
+    rel = positions[:, HUMANOID_BONES.index(joint)] - positions[:, 0]
+    across = np.cos(yaw) * rel[:, 0] - np.sin(yaw) * rel[:, 2]
+    along = np.sin(yaw) * rel[:, 0] + np.cos(yaw) * rel[:, 2]
+    return across, along
+
+
+def hips_twist(rotations: np.ndarray, positions: np.ndarray) -> float:
+    """Degrees: the standard deviation of the hips' facing about its running mean."""
+    return float(np.degrees(_about_running_mean(hips_yaw(rotations))).std())
+
+
+def stance_width(rotations: np.ndarray, positions: np.ndarray) -> float:
+    """cm: the left ankle's mean distance from the right across the hips' facing (negative
+    while they are crossed)."""
+    left, _ = _across_and_along(rotations, positions, "LeftFoot")
+    right, _ = _across_and_along(rotations, positions, "RightFoot")
+    return float(np.mean(left - right))
+
+
+def arm_swing(rotations: np.ndarray, positions: np.ndarray) -> float:
+    """cm: the hands' forward-and-back swing against the hips, the standard deviation about
+    its running mean, averaged over the two hands."""
+    return float(np.mean([_about_running_mean(_across_and_along(rotations, positions, hand)[1]).std()
+                          for hand in ("LeftHand", "RightHand")]))
+
+
+# name -> (rotations (T, J, 4), positions (T, J, 3)) -> one figure per take
+GAIT_STATISTICS = {"hips_twist_deg": hips_twist, "stance_width_cm": stance_width, "arm_swing_cm": arm_swing}
+
+
+def gait_statistics(rotations: np.ndarray, positions: np.ndarray) -> dict[str, float]:
+    """A take's ``GAIT_STATISTICS``, by name."""
+    return {name: f(rotations, positions) for name, f in GAIT_STATISTICS.items()}
 
 
 def floor_penetration(input_positions: np.ndarray, output_positions: np.ndarray) -> np.ndarray:

@@ -34,6 +34,12 @@ GOALS = (
      lambda v, m: v <= 1.5, "<= 1.5"),
     ("foot skating on the output's own contacts / input's, worst action (stricter than the issue)",
      "skate_ratio_worst_action", lambda v, m: v <= 1.5, "<= 1.5"),
+    # Stricter than the issue (metrics.GAIT_STATISTICS): the hips' twist, the stance's width
+    # and the arms' swing, each action's mean inside the range of every real take of the
+    # target style and that action (eval_measures.gait_outside: 1 inside). Absent from
+    # reports before it.
+    ("gait statistics inside the real target takes' range, worst action (factor outside; stricter than the issue)",
+     "gait_outside_worst_action", lambda v, m: v <= 1.0, "<= 1"),
     # Stricter than the issue (metrics.held): where the input holds a hand or the head still,
     # the output's speed there over the input's. Absent from reports before it.
     ("held hands and head: speed / input's where the input holds still (stricter than the issue)",
@@ -148,7 +154,7 @@ def write_report(path: Path, m: dict, plots: list[str]) -> Path:
     for setting in ("stream", "live-from-start"):
         lines += _goals_lines(m, setting, floors) + _variants_lines(res, setting, floors)
     lines += _judged_as_lines(res) + _per_action_lines(res, actions) + _action_taken_lines(res, actions)
-    lines += _real_motion_lines(m) + travel_ceiling_lines(m) + tempo_ceiling_lines(m) + fmd_lines(m)
+    lines += _real_motion_lines(m) + _gait_lines(m) + travel_ceiling_lines(m) + tempo_ceiling_lines(m) + fmd_lines(m)
     lines += _seam_lines(m) + [f"![{p}]({p})" for p in plots]
     lines += ["", f"Evaluation took {m['seconds']:.0f} s. Raw numbers: `metrics.json`.", ""]
     path.write_text("\n".join(lines))
@@ -276,6 +282,8 @@ PER_ACTION = (("judged target", "judged_target", _pct), ("action kept (2 s)", "a
               ("held hands and head, speed ratio", "hold_ratio", lambda v: _num(v, 2)),
               ("step height ratio (against the real-motion table's)", "step_height_ratio",
                lambda v: _num(v, 2)),
+              ("gait statistics outside the real target takes' range (factor; 1 inside)", "gait_outside",
+               lambda v: _num(v, 2)),
               ("timing sync", "timing_sync", lambda v: _num(v, 3)))
 
 
@@ -320,6 +328,28 @@ def _real_motion_lines(m: dict) -> list[str]:
                      + (f" {_num(holds.get(a), 2)} |" if holds else "")
                      + (f" {_num(skates.get(a), 2)} |" if skates else "")
                      + (f" {_num(steps.get(a), 2)} |" if steps else ""))
+    return lines
+
+
+def _gait_lines(m: dict) -> list[str]:
+    """Each gait statistic per action: the input's, the model's and the real target takes' range."""
+    ranges = m.get("real_target_gait_range")
+    if not ranges:  # a report from before the gait statistics
+        return []
+    per = {name: r["stream"]["per_action"] for name, r in m["results"].items() if name in ("input", "proposed")}
+    lines = ["", f"## Gait statistics, stream: input / model under test [every real {m['target']} take of the action]",
+             "", "Hips twist: the hips' facing about its 1 s running mean, standard deviation in degrees; stance width: "
+             "the ankles' mean distance apart across the hips' facing (negative: crossed), cm; arm swing: the hands' "
+             "forward-and-back swing against the hips about their 1 s running mean, standard deviation in cm "
+             "(`metrics.GAIT_STATISTICS`). A figure outside the brackets is in bold.", "",
+             "| action | " + " | ".join(next(iter(ranges.values()))) + " |", "|---|" + "---|" * len(next(iter(ranges.values())))]
+    for a, r in ranges.items():
+        cells = []
+        for k, (low, high) in r.items():
+            mine = per["proposed"][a]["gait"][k]
+            shown = _num(mine, 1) if low <= mine <= high else f"**{_num(mine, 1)}**"
+            cells.append(f"{_num(per['input'][a]['gait'][k], 1)} / {shown} [{_num(low, 1)}–{_num(high, 1)}]")
+        lines.append(f"| {a} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -435,8 +465,16 @@ def summary_rows(per_target: dict, variants: tuple[str, ...] = ("proposed",)) ->
             o = m["results"][name]["stream"]["overall"]
             floors = fmd_floors(m)
             rows.append({"target": target, "variant": name, "judged_target_mean": o["judged_target"],
-                         "action_kept_mean": o["action_kept"], **goal_values(o, floors), "met": goals_met(o, floors)})
+                         "action_kept_mean": o["action_kept"], **goal_values(o, floors), "met": goals_met(o, floors),
+                         "gait_outside": o.get("worst_action", {}).get("gait_outside")})
     return rows
+
+
+def _gait_cell(worst: dict | None) -> str:
+    """The worst action's gait figure, e.g. "1.42 (walk: hips_twist_deg)", "1.00", or n/a."""
+    if not worst:
+        return "n/a"
+    return _num(worst["value"], 2) + (f" ({worst['action']}: {worst['of']})" if worst.get("of") else "")
 
 
 def write_summary(path: Path, model: str, per_target: dict, plots: list[str], seconds: float) -> Path:
@@ -454,15 +492,17 @@ def write_summary(path: Path, model: str, per_target: dict, plots: list[str], se
              "The dynamics column (worst dynamics judge, velocities only) is stricter than the bar.",
              "The one-word action column (1 s windows, worst judge) is stricter than the bar's (2 s windows).",
              "", "| target | model | judged as target | action kept (2 s) | action kept (1 s) | jerk ratio | slide ratio | "
-             "timing sync | seam / input's | FMD / floor | judged as target, dynamics | bar met |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "timing sync | seam / input's | FMD / floor | judged as target, dynamics | gait, worst action (1: inside "
+             "the real takes' range) | bar met |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in summary_rows(per_target, ("proposed", *others)):
         short = [k for k in BAR if not r["met"][k]]
         lines.append(f"| {r['target']} | {r['variant']} | {_pct(r['judged_target'])} ({_pct(r['judged_target_mean'])}) | "
                      f"{_pct(r['action_kept'])} ({_pct(r['action_kept_mean'])}) | {_pct(r.get('action_kept_short'))} | "
                      f"{_num(r['jerk_all'], 2)} | {_num(r['slide_ratio'], 2)} | {_num(r['timing_sync'], 3)} | "
                      f"{_num(r['seam_ratio_relative'], 3)} | {_num(r['fmd_ratio'], 1)} | "
-                     f"{_pct(r.get('judged_target_dynamics'))} | {'yes' if not short else 'no: ' + ', '.join(short)} |")
+                     f"{_pct(r.get('judged_target_dynamics'))} | {_gait_cell(r.get('gait_outside'))} | "
+                     f"{'yes' if not short else 'no: ' + ', '.join(short)} |")
     ceilings = {t: m["travel_ceiling"]["overall"]["source_travel_judges"] for t, m in per_target.items()
                 if m.get("travel_ceiling", {}).get("overall", {}).get("source_travel_judges")}
     if ceilings:

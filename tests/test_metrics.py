@@ -659,3 +659,81 @@ def test_a_slide_confined_to_a_few_actions_fails_the_worst_action_goal():
     assert goals_met(overall, [1.0, 1.0, 1.0])["slide_ratio_worst_action"]
     del overall["worst_action"]  # a report written before the reading: no such goal, no failure
     assert "slide_ratio_worst_action" not in goals_met(overall, [1.0, 1.0, 1.0])
+
+
+def walking_gait(frames: int = 240, twist_deg: float = 6.0, width_cm: float = 12.0, swing_cm: float = 15.0,
+                 facing_deg: float = 30.0):
+    """A synthetic take with known gait statistics: the hips' facing swings ``twist_deg``
+    about ``facing_deg`` once a second, the ankles stand ``width_cm`` apart across that facing
+    and the hands swing ``swing_cm`` forward and back, in counter-phase, once a second ->
+    (rotations (T, J, 4), positions (T, J, 3)). Sinusoids over whole cycles: a standard
+    deviation of amplitude / sqrt 2."""
+    t = np.arange(frames) / 60.0
+    phase = 2 * np.pi * t
+    yaw = np.radians(facing_deg + twist_deg * np.sin(phase))
+    q = np.tile(np.array([0.0, 0.0, 0.0, 1.0]), (frames, J, 1))
+    q[:, 0] = np.stack([np.zeros_like(yaw), np.sin(yaw / 2), np.zeros_like(yaw), np.cos(yaw / 2)], axis=-1)
+    across = np.stack([np.cos(yaw), np.zeros_like(yaw), -np.sin(yaw)], axis=-1)
+    forward = np.stack([np.sin(yaw), np.zeros_like(yaw), np.cos(yaw)], axis=-1)
+    hips = np.stack([np.zeros_like(t), 90 + np.zeros_like(t), 80 * t], axis=-1)
+    p = np.repeat(hips[:, None], J, axis=1)
+    for name, side in (("LeftFoot", 1), ("RightFoot", -1)):
+        p[:, HUMANOID_BONES.index(name)] = hips + side * width_cm / 2 * across - [0, 85, 0]
+    for name, side in (("LeftHand", 1), ("RightHand", -1)):
+        p[:, HUMANOID_BONES.index(name)] = hips + side * 20 * across + side * swing_cm * np.sin(phase)[:, None] * forward
+    return q, p
+
+
+def test_gait_statistics_read_a_known_gait_and_a_twisted_or_crossed_copy():
+    """Each statistic reads its known value at any facing; the known-bad cases the
+    evaluation missed read as such: hips swung twice as far, feet crossed."""
+    for facing in (0.0, 30.0, 170.0):
+        g = M.gait_statistics(*walking_gait(facing_deg=facing))
+        assert g["hips_twist_deg"] == pytest.approx(6.0 / np.sqrt(2), rel=0.02)
+        assert g["stance_width_cm"] == pytest.approx(12.0, rel=1e-6)
+        assert g["arm_swing_cm"] == pytest.approx(15.0 / np.sqrt(2), rel=0.02)
+    twisted = M.gait_statistics(*walking_gait(twist_deg=12.0))
+    assert twisted["hips_twist_deg"] == pytest.approx(2 * 6.0 / np.sqrt(2), rel=0.02)
+    assert M.gait_statistics(*walking_gait(width_cm=-3.0))["stance_width_cm"] == pytest.approx(-3.0, rel=1e-6)
+    # a slow turn of the whole take is not a twist: the running mean takes it
+    q, p = walking_gait(twist_deg=0.0)
+    yaw = np.radians(np.linspace(0, 90, len(q)))
+    q[:, 0] = np.stack([np.zeros_like(yaw), np.sin(yaw / 2), np.zeros_like(yaw), np.cos(yaw / 2)], axis=-1)
+    assert M.hips_twist(q, p) < 0.05
+
+
+def test_gait_outside_the_real_range_fails_the_goal_and_names_the_statistic():
+    """Inside every real take's range reads 1; hips swung 1.5x past the most any real take
+    swings, or feet crossed against a range of 8-11 cm, fail the worst-action gait goal and
+    are named. The input reads its own statistics (the zero point)."""
+    from stylecast.models.eval_measures import gait_outside, summarise, worst_actions
+    from stylecast.models.report import goals_met
+
+    q, p = walking_gait()
+    ranges = {"hips_twist_deg": (3.0, 6.0), "stance_width_cm": (8.0, 14.0), "arm_swing_cm": (8.0, 12.0)}
+    inside = M.gait_statistics(q, p)
+    assert gait_outside(inside, ranges) == (1.0, "")
+    twisted = M.gait_statistics(*walking_gait(twist_deg=6.0 * 1.5 * np.sqrt(2)))
+    factor, name = gait_outside(twisted, ranges)
+    assert name == "hips_twist_deg" and factor == pytest.approx(1.5, rel=0.03)
+    crossed = M.gait_statistics(*walking_gait(width_cm=-1.0))
+    assert gait_outside(crossed, ranges) == (100.0, "stance_width_cm")
+    factor, name = gait_outside(M.gait_statistics(*walking_gait(width_cm=4.0)), ranges)
+    assert name == "stance_width_cm" and factor == pytest.approx(2.0)
+
+    qs, roots = smooth_motion()
+    clip = clip_measures(qs, qs.copy(), roots, roots.copy(), humanoid_skeleton_default())
+    assert clip["gait_in"] == clip["gait_out"]
+    overall = summarise([clip], [np.full((3, 8), 0)], [np.full((3, 8), 0)], [0], 0, ["a"], ["x"])
+    assert overall["gait"] == overall["gait_input"]
+    overall.update(seam_ratio_relative=1.0, fmd_judges=[1.0, 1.0, 1.0])
+    per_action = {"walk": {}, "wave": {}}
+    for a, stats in (("walk", twisted), ("wave", inside)):
+        per_action[a]["gait_outside"], per_action[a]["gait_outside_of"] = gait_outside(stats, ranges)
+    overall["worst_action"] = worst_actions(per_action)
+    assert overall["worst_action"]["gait_outside"]["action"] == "walk"
+    assert overall["worst_action"]["gait_outside"]["of"] == "hips_twist_deg"
+    assert not goals_met(overall, [1.0, 1.0, 1.0])["gait_outside_worst_action"]
+    per_action["walk"]["gait_outside"], per_action["walk"]["gait_outside_of"] = gait_outside(inside, ranges)
+    overall["worst_action"] = worst_actions(per_action)
+    assert goals_met(overall, [1.0, 1.0, 1.0])["gait_outside_worst_action"]

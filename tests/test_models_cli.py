@@ -173,6 +173,12 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     assert live_input["jerk_ratio"]["all"] == 1.0 and live_input["slide_ratio"] == 1.0 and live_input["hold_ratio"] == 1.0
     assert "held hands and head" in report and metrics["real_target_hold_ratio"]
     assert live_input["step_height_ratio"] == 1.0
+    # gait statistics: the input reads its own; each action is read against every real target take of it
+    assert live_input["gait"] == live_input["gait_input"]
+    ranges = metrics["real_target_gait_range"]
+    assert ranges and set(ranges) <= set(results["input"]["stream"]["per_action"])
+    assert all(low <= high for r in ranges.values() for low, high in r.values())
+    assert "Gait statistics, stream" in report and "gait statistics inside the real target takes' range" in report
     assert "step height" in report and metrics["real_target_step_ratio"]
     assert live_input["timing_sync"] == pytest.approx(1.0) and live_input["judged_target"] < 0.5
     # a one-epoch model is nearly the identity: far from the target on FMD, unlike real target windows
