@@ -737,3 +737,31 @@ def test_gait_outside_the_real_range_fails_the_goal_and_names_the_statistic():
     per_action["walk"]["gait_outside"], per_action["walk"]["gait_outside_of"] = gait_outside(inside, ranges)
     overall["worst_action"] = worst_actions(per_action)
     assert goals_met(overall, [1.0, 1.0, 1.0])["gait_outside_worst_action"]
+
+
+def test_gait_statistics_tell_real_styles_apart_on_real_walks(bandai_root):
+    """On real Bandai walks: every held-out feminine walk lies inside the range of the
+    training feminine walks on all three statistics, and the held-out normal walks, a
+    different style, fall outside it: they twist their hips more and stand wider than any
+    feminine walk."""
+    from stylecast.models.data import files_for_style, list_files, load_motion, bandai_skeleton
+    from stylecast.models.eval_measures import gait_outside
+
+    files = list_files(bandai_root / "dataset-2" / "data")
+    skeleton = bandai_skeleton(files)
+
+    def stats(style: str, split: str) -> list[dict]:
+        out = []
+        for f in files_for_style(files, style, split):
+            if f.action == "walk":
+                m = load_motion(f)
+                out.append(M.gait_statistics(m.rotations, M.world_positions(m.rotations, m.root_positions, skeleton)))
+        return out
+
+    train = stats("feminine", "train")
+    ranges = {k: (min(s[k] for s in train), max(s[k] for s in train)) for k in M.GAIT_STATISTICS}
+    for s in stats("feminine", "val"):
+        assert gait_outside(s, ranges)[0] < 1.1, s
+    for s in stats("normal", "val"):
+        assert gait_outside(s, ranges)[0] > 1.2, (s, ranges)
+        assert s["hips_twist_deg"] > ranges["hips_twist_deg"][1] and s["stance_width_cm"] > ranges["stance_width_cm"][1]
