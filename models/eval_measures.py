@@ -150,14 +150,16 @@ def fmd_figures(feats: list[np.ndarray], labels: np.ndarray, feats_target: list[
 
 def gait_outside(gait: dict, ranges: dict) -> tuple[float, str]:
     """A set's mean gait statistics (``summarise``'s ``gait``) and the real target takes'
-    range of each ({name: (lowest, highest)}, the same action; every one above 0) -> how far
-    the statistic furthest outside its range lies, as a factor (1 inside; 1.4: 40 % past
-    the highest, or the lowest over 1.4), and its name ("" inside). A stance width at or
-    under 0 (feet crossed on average) reads 100: as far out as a figure here goes."""
+    range of each ({name: (lowest, highest)}, the same action), each widened by its
+    ``metrics.GAIT_STATISTICS`` tolerance -> how far the statistic furthest outside its
+    range lies, as a factor (1 inside; 1.4: 40 % past the top, or the bottom over 1.4), and
+    its name ("" inside). A figure under the range at or below 0 (feet crossed on average)
+    reads 100, as far out as a figure here goes."""
     worst, name = 1.0, ""
     for k, (low, high) in ranges.items():
-        v = gait[k]
-        factor = v / high if v > high else low / max(v, 0.01 * low) if v < low else 1.0
+        v, slack = gait[k], M.GAIT_STATISTICS[k].tolerance
+        low, high = low - slack, high + slack
+        factor = v / high if v > high else (min(low / v, 100.0) if v > 0 else 100.0) if v < low else 1.0
         if factor > worst:
             worst, name = float(factor), k
     return worst, name

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .metrics import GAIT_STATISTICS
+
 # The bar a shipped model must clear (issue "Restyled motion that holds up"), checked
 # on the "stream" setting of the evaluation; what the judges read is read on the panel's
 # worst judge (judges.py says why). (name, metric key, test, shown goal)
@@ -341,13 +343,14 @@ def _gait_lines(m: dict) -> list[str]:
              "", "Hips twist: the hips' facing about its 1 s running mean, standard deviation in degrees; stance width: "
              "the ankles' mean distance apart across the hips' facing (negative: crossed), cm; arm swing: the hands' "
              "forward-and-back swing against the hips about their 1 s running mean, standard deviation in cm "
-             "(`metrics.GAIT_STATISTICS`). A figure outside the brackets is in bold.", "",
+             "(`metrics.GAIT_STATISTICS`). A figure outside the brackets by more than its tolerance (1 degree or cm) "
+             "is in bold.", "",
              "| action | " + " | ".join(next(iter(ranges.values()))) + " |", "|---|" + "---|" * len(next(iter(ranges.values())))]
     for a, r in ranges.items():
         cells = []
         for k, (low, high) in r.items():
-            mine = per["proposed"][a]["gait"][k]
-            shown = _num(mine, 1) if low <= mine <= high else f"**{_num(mine, 1)}**"
+            mine, slack = per["proposed"][a]["gait"][k], GAIT_STATISTICS[k].tolerance
+            shown = _num(mine, 1) if low - slack <= mine <= high + slack else f"**{_num(mine, 1)}**"
             cells.append(f"{_num(per['input'][a]['gait'][k], 1)} / {shown} [{_num(low, 1)}–{_num(high, 1)}]")
         lines.append(f"| {a} | " + " | ".join(cells) + " |")
     return lines
