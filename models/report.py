@@ -347,6 +347,8 @@ def _gait_lines(m: dict) -> list[str]:
              "is in bold.", "",
              "| action | " + " | ".join(next(iter(ranges.values()))) + " |", "|---|" + "---|" * len(next(iter(ranges.values())))]
     for a, r in ranges.items():
+        if a not in per["proposed"]:  # no held-out take of the action restyled
+            continue
         cells = []
         for k, (low, high) in r.items():
             mine, slack = per["proposed"][a]["gait"][k], GAIT_STATISTICS[k].tolerance
