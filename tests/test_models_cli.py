@@ -179,6 +179,13 @@ def test_eval_writes_a_report(tiny_run, tmp_path):
     assert ranges and set(ranges) <= set(results["input"]["stream"]["per_action"])
     assert all(low <= high for r in ranges.values() for low, high in r.values())
     assert "Gait statistics, stream" in report and "gait statistics inside the real target takes' range" in report
+    from stylecast.models.report import summary_rows, write_summary
+
+    worst = summary_rows({metrics["target"]: metrics})[0]["gait_outside"]  # the summary's column: the worst action
+    per_action = results["proposed"]["stream"]["per_action"]
+    assert worst["value"] == max(o["gait_outside"] for o in per_action.values() if "gait_outside" in o) >= 1.0
+    summary = write_summary(tmp_path / "summary.md", model, {metrics["target"]: metrics}, [], 1.0).read_text()
+    assert f"| {worst['value']:.2f}" in summary and "gait, worst action" in summary
     assert "step height" in report and metrics["real_target_step_ratio"]
     assert live_input["timing_sync"] == pytest.approx(1.0) and live_input["judged_target"] < 0.5
     # a one-epoch model is nearly the identity: far from the target on FMD, unlike real target windows
