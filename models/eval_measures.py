@@ -159,7 +159,12 @@ def gait_outside(gait: dict, ranges: dict) -> tuple[float, str]:
     for k, (low, high) in ranges.items():
         v, slack = gait[k], M.GAIT_STATISTICS[k].tolerance
         low, high = low - slack, high + slack
-        factor = v / high if v > high else (min(low / v, 100.0) if v > 0 else 100.0) if v < low else 1.0
+        if v > high:
+            factor = v / high
+        elif v < low:
+            factor = min(low / v, 100.0) if v > 0 else 100.0
+        else:
+            continue
         if factor > worst:
             worst, name = float(factor), k
     return worst, name

@@ -218,38 +218,38 @@ def hips_yaw(rotations: np.ndarray) -> np.ndarray:
     return np.unwrap(word_heading(np.asarray(rotations, np.float64)[:, None]))
 
 
-def _across_and_along(rotations: np.ndarray, positions: np.ndarray, joint: str) -> tuple[np.ndarray, np.ndarray]:
-    """A joint's position against the hips in the hips' facing: (T,) across (towards the
-    humanoid's left) and (T,) along (forward), cm."""
-    yaw = hips_yaw(rotations)
+def _across_and_along(yaw: np.ndarray, positions: np.ndarray, joint: str) -> tuple[np.ndarray, np.ndarray]:
+    """A joint's position against the hips in the hips' facing ``yaw`` (T,): (T,) across
+    (towards the humanoid's left) and (T,) along (forward), cm."""
     rel = positions[:, HUMANOID_BONES.index(joint)] - positions[:, 0]
     across = np.cos(yaw) * rel[:, 0] - np.sin(yaw) * rel[:, 2]
     along = np.sin(yaw) * rel[:, 0] + np.cos(yaw) * rel[:, 2]
     return across, along
 
 
-def hips_twist(rotations: np.ndarray, positions: np.ndarray) -> float:
-    """Degrees: the standard deviation of the hips' facing about its running mean."""
-    return float(np.degrees(_about_running_mean(hips_yaw(rotations))).std())
+def hips_twist(yaw: np.ndarray, positions: np.ndarray) -> float:
+    """Degrees: the standard deviation of the hips' facing ``yaw`` about its running mean."""
+    return float(np.degrees(_about_running_mean(yaw)).std())
 
 
-def stance_width(rotations: np.ndarray, positions: np.ndarray) -> float:
+def stance_width(yaw: np.ndarray, positions: np.ndarray) -> float:
     """cm: the left ankle's mean distance from the right across the hips' facing (negative
     while they are crossed)."""
-    left, _ = _across_and_along(rotations, positions, "LeftFoot")
-    right, _ = _across_and_along(rotations, positions, "RightFoot")
+    left, _ = _across_and_along(yaw, positions, "LeftFoot")
+    right, _ = _across_and_along(yaw, positions, "RightFoot")
     return float(np.mean(left - right))
 
 
-def arm_swing(rotations: np.ndarray, positions: np.ndarray) -> float:
+def arm_swing(yaw: np.ndarray, positions: np.ndarray) -> float:
     """cm: the hands' forward-and-back swing against the hips, the standard deviation about
     its running mean, averaged over the two hands."""
-    return float(np.mean([_about_running_mean(_across_and_along(rotations, positions, hand)[1]).std()
+    return float(np.mean([_about_running_mean(_across_and_along(yaw, positions, hand)[1]).std()
                           for hand in ("LeftHand", "RightHand")]))
 
 
 class GaitStatistic(NamedTuple):
-    """``read``: (rotations (T, J, 4), positions (T, J, 3)) -> one figure per take.
+    """``read``: (the hips' facing (T,) from ``hips_yaw``, positions (T, J, 3)) -> one
+    figure per take.
     ``tolerance``: how far past the real takes' range a figure may lie and still count as
     inside, in its own unit: about the spread of one style's takes, and under what a viewer
     sees (a standing take's hips twist 0.1-1.1 degrees; the pair default's right raises,
@@ -265,8 +265,9 @@ GAIT_STATISTICS = {"hips_twist_deg": GaitStatistic(hips_twist, 1.0),
 
 
 def gait_statistics(rotations: np.ndarray, positions: np.ndarray) -> dict[str, float]:
-    """A take's ``GAIT_STATISTICS``, by name."""
-    return {name: stat.read(rotations, positions) for name, stat in GAIT_STATISTICS.items()}
+    """A take's ``GAIT_STATISTICS``, by name (the hips' facing read once for all)."""
+    yaw = hips_yaw(rotations)
+    return {name: stat.read(yaw, positions) for name, stat in GAIT_STATISTICS.items()}
 
 
 def floor_penetration(input_positions: np.ndarray, output_positions: np.ndarray) -> np.ndarray:
