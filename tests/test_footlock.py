@@ -15,6 +15,7 @@ import pytest
 from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import (AUTO_FEET, LEGS, ContactSettings, FootLock, StanceOffset, feet_for, leg_chain,
                                        solve_lock_jobs)
+from stylecast.motion.footlock.contacts import lock_kernel
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.smoothing import CorrectionFilter
 from stylecast.motion.words import BlendSettings
@@ -355,3 +356,41 @@ def test_a_stream_fading_in_stands_in_the_restyled_stance_from_its_first_frame(a
     assert slides["at the aim"] < 1e-6  # and never slides
     assert slides["following the fade"] > 0.05  # the known-bad cases: following the fade slides,
     assert widths["input's"][fade] - own[fade] < (wanted[fade] - own[fade]) / 4  # and holding the input's keeps it
+
+
+def test_a_landing_foot_stands_where_its_restyled_swing_comes_to_rest():
+    """A stance offset frozen where the lock starts to blend in, ``ramp`` frames before
+    touch-down (the known-bad case, the previous capture), keeps the swinging foot's
+    offset: the multistyle model's feminine walks froze a foot 7.9 cm inward of the input's
+    and the ankles crossed. Settling eases the offset to a stop through the blend-in, so
+    the foot stands near where its restyled swing comes to rest; from the full lock on it
+    holds, through the let-go too."""
+    ramp, release, contact = 4, 8, 16
+    weights = np.concatenate([np.zeros(10), lock_kernel(ramp, release, release)[release:][::-1][:ramp],
+                              np.ones(contact), lock_kernel(ramp, release, release)[:release][::-1], np.zeros(4)])
+    n = len(weights)
+    landing = np.array([-7.5, -4.5, -2.8, -2.2])  # the restyled left foot's offset, decelerating as it lands
+    across = np.full(n, -7.5)  # ...inward of the input's (x +5), swinging across before and after
+    across[10:10 + ramp] = landing
+    across[10 + ramp:10 + ramp + contact] = -2.0  # where it stands through the contact
+    own_ankle = np.zeros((n, 2, 3))
+    own_ankle[:, 0, 0], own_ankle[:, 1, 0] = 5.0, -5.0
+    own = (own_ankle, own_ankle + [0.0, 0.0, 12.0])
+    ankle = own_ankle.copy()
+    ankle[:, 0, 0] += across
+    locked = np.zeros((n, 2))
+    locked[:, 0] = weights
+    planted = slice(10 + ramp, 10 + ramp + contact + release)  # full lock, then letting go
+
+    def offsets(settle):
+        stance = StanceOffset(replace(STANCE, stance_settle=settle))
+        return stance.track(0, own, (ankle, ankle + [0.0, 0.0, 12.0]), locked)[:, 0, 0]
+
+    frozen, settled = offsets(False), offsets(True)
+    np.testing.assert_allclose(frozen[10:planted.stop], -7.5)  # the known-bad: the swing's offset, kept
+    held = settled[planted]
+    np.testing.assert_allclose(held, held[0], atol=1e-12)  # still from the full lock through the let-go
+    assert -4.8 < held[0] < -4.0  # 3 cm nearer where the foot comes to rest (-2) than the swing's
+    steps = np.abs(np.diff(settled[10:10 + ramp]))  # through the blend-in, before the full lock
+    assert np.all(np.diff(steps) < 0) and steps[-1] < 0.3  # easing to a stop, not stopping dead
+    np.testing.assert_allclose(settled[:10], -7.5)  # free before the lock, as before

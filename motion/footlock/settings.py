@@ -53,6 +53,18 @@ class ContactSettings:
     # of 4 cm and 10 degrees before following still left 1.4-1.8x; none leaves 1.00.
     stance_cap: float = 0.0
     stance_rate: float = 0.0
+    # ...and whether a new contact's offset settles through the lock's blend-in: it moves by
+    # the share of the lock not yet set (1 - weight), so it eases to a stop at touch-down,
+    # and holds from there (False: frozen where the lock starts to blend in, ``ramp``
+    # frames before touch-down). Frozen there it was the swinging foot's: the multistyle
+    # model's feminine walks froze a foot 7.9 cm inward where the restyled foot stood
+    # 1.5-2.5 cm inward through the contact, the ankles 3.1-4.2 cm apart and crossed in
+    # 3-9 % of frames (three held-out walks); settled 4.3-5.4 cm, crossed in 0-1.3 %, the
+    # slide 1.10 -> 1.08. Settling the let-go too (the ease while the lock lets go) raised
+    # an active turning walk's jerk 1.085 -> 1.123 and its largest one-frame jerk 1.43 ->
+    # 1.70x the input's; only the blend-in leaves both as they were. (Scratch figures:
+    # runs/settle/shape_in.py; the panel's in the model card, "A landing foot settles".)
+    stance_settle: bool = False
     # ...and the foot's turn about the vertical against the input's (toes out or in):
     # at most this many degrees, moving at most this fast while locked (degrees a frame;
     # 0.04 would move the ball of a 15 cm foot 0.01 cm).
@@ -83,17 +95,19 @@ class ContactSettings:
 # over six against 57.8 %), but for elderly and exhausted (its ``feet_of_style``). For the
 # pair default "input" reads better since its hips follow within 2 frames (88.1 % against
 # 75.4 % on the judges' mean, action 89.5 against 86.8 %, measured when a planted foot
-# still crept into a new stance: ``stance_rate``). The stance's hips settle slower (8 frames): with 2 the
-# multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %) and popped more in
+# still crept into a new stance: ``stance_rate``). The stance's hips settle slower (8
+# frames): with 2 the multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %) and popped more in
 # five styles of six, though active, elderly, exhausted and masculine gained 7-16 points.
 # "auto", the default, takes the model's own (``Restyler.feet``; figures in
 # models/checkpoints/MODEL_CARD.md).
-# The stance's cap: a foot's offset is taken where its lock starts to blend in, ``ramp``
-# frames before touch-down, while the restyled foot still swings, so a large one is mostly
-# swing: with 15 cm the multistyle model's knees popped 3.1-4.0x the input's largest jerk in
-# active, feminine, masculine and youthful walks and runs; 8 cm: 1.95-3.11x, every style read
-# as its target within a point of 15 cm's (5 cm: feminine -2.0). Following the restyled foot
-# until full contact instead popped more (6.6x, a feminine run): the offset then stops dead.
+# The stance's cap (measured when a foot's offset was frozen where its lock starts to blend
+# in, ``ramp`` frames before touch-down, while the restyled foot still swings; it now
+# settles, ``stance_settle``): a large one is mostly swing: with 15 cm the multistyle
+# model's knees popped 3.1-4.0x the input's largest jerk in active, feminine, masculine and
+# youthful walks and runs; 8 cm: 1.95-3.11x, every style read as its target within a point
+# of 15 cm's (5 cm: feminine -2.0). Following the restyled foot at full speed until full
+# contact popped more (6.6x, a feminine run): the offset then stops dead, where settling
+# eases it to a stop.
 # The stance lets go over 8 frames: its planted foot stands up to the cap from the input's
 # while the restyled swing foot is elsewhere again by lift-off, and over 4 frames the foot
 # jumped that gap (the multistyle model's held-out active walks: a toe's one-frame jerk 5x
@@ -102,7 +116,8 @@ class ContactSettings:
 # point or better: the model card's "The stance lets go over 8 frames"). The input lock keeps
 # 4: with 8 the pair default read exhausted 0.8 points less on its worst conv judge, where
 # it stands at the bar (its jerk was 1.008 already).
-FEET = {"input": ContactSettings(), "stance": ContactSettings(stance_cap=8.0, pelvis_tau=8.0, release=8)}
+FEET = {"input": ContactSettings(),
+        "stance": ContactSettings(stance_cap=8.0, pelvis_tau=8.0, release=8, stance_settle=True)}
 AUTO_FEET = "auto"  # the model's own choice (its ``feet``), else "input"
 
 

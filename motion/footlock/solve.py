@@ -131,15 +131,15 @@ def _advance(rows: _Rows) -> None:
     gap = restyled[0][..., 1] - own[0][..., 1]  # (rows, 2)
     rows.new_roots = rows.roots.copy()
     rows.stance = np.zeros((len(rows.roots), 2, 3))
-    planted, down = rows.weights > 0, rows.down
+    down = rows.down
     if len(jobs) > 1 and len(rows.roots) == len(jobs):
-        _advance_one_frame_each(rows, restyled, gap, planted)
+        _advance_one_frame_each(rows, restyled, gap)
         return
     for job, (lo, hi) in zip(jobs, rows.spans):
         lock = job.lock
         rows.new_roots[lo:hi, 1] -= lock.pelvis.drops(np.where(down[lo:hi], gap[lo:hi], 0.0), down[lo:hi])
         stance = lock.stance.track(job.t0, (own[0][lo:hi], own[1][lo:hi]),
-                                   (restyled[0][lo:hi], restyled[1][lo:hi]), planted[lo:hi], job.mix)
+                                   (restyled[0][lo:hi], restyled[1][lo:hi]), job.weights, job.mix)
         if stance is not None:
             rows.stance[lo:hi] = stance
         pace = lock.pace.track(job.roots, job.weights, job.mix)
@@ -152,7 +152,7 @@ def _advance(rows: _Rows) -> None:
         lock.locked_frames += int(np.count_nonzero(job.weights >= 1.0))
 
 
-def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray, planted: np.ndarray) -> None:
+def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray) -> None:
     """``_advance`` where every lock has one frame (the daemon's tick): the stances'
     targets in one pass for all (``stance_targets``, each row with its lock's settings),
     then each lock's recurrences step on Python floats read out of the rows in one go, and
@@ -163,7 +163,7 @@ def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray, plant
     process): 4.8 -> 3.6 ms a tick with ``--feet input``, 8.9 -> 4.3 ms with the stance,
     the results bit for bit the same."""
     jobs = rows.jobs
-    gaps, down, held = np.where(rows.down, gap, 0.0).tolist(), rows.down.tolist(), planted.tolist()
+    gaps, down = np.where(rows.down, gap, 0.0).tolist(), rows.down.tolist()
     xz, weights = rows.roots[:, [0, 2]].tolist(), rows.weights.tolist()
     shown = [1.0 if job.mix is None else float(job.mix[0]) for job in jobs]
     at = [i for i, job in enumerate(jobs) if job.lock.stance.cap > 0]  # the rows with a stance (--feet stance)
@@ -174,7 +174,7 @@ def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray, plant
                                       per_row[:, 0, None, None], per_row[:, 1, None, None], per_row[:, 2, None],
                                       per_row[:, 3, None])
         wanted, sure = wanted.tolist(), sure.tolist()
-        rows.stance[at] = [stance.follow(jobs[i].t0, [wanted[k]], [held[i]], [sure[k]], [shown[i]])[0]
+        rows.stance[at] = [stance.follow(jobs[i].t0, [wanted[k]], [weights[i]], [sure[k]], [shown[i]])[0]
                            for k, (i, stance) in enumerate(zip(at, stances))]
     drops, paced, body, feet = [], [], [], []
     for i, job in enumerate(jobs):

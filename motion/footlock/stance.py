@@ -5,16 +5,19 @@ model, windows judged masculine fell from 81 % unlocked to 11 % locked, feminine
 to 23 %, nearly all of it in the standing actions. With the stance kept, the target is the
 input's ankle plus a horizontal offset (where the restyled foot stands beside the input's)
 and the foot turns about the vertical as the restyled one; the knee keeps its restyled
-plane. While a foot is free the offsets follow the restyled leg; while it is locked they
-move at most ``stance_rate`` cm (``turn_rate`` degrees) a frame, by default not at all, so
-a planted foot lands where the restyled leg put it and stays there beside the input's
-until it lifts: a standing performer's stance changes by a step, as a real one's does (a
-new style chosen live while standing shows in the feet at the next step). A foot's heading counts in proportion to its length on the floor: a foot
-pointing down has none to follow. Through a stream's first fade-in from pass-through
-(where it has one: ``words.BlendSettings.start_restyled``) the targets are taken at the
-share the fade heads for, so a foot planted at the start stands in the restyled stance
-from the first frame instead of sliding into it as the body fades in. Each model kind names
-its lock (``FEET``, ``--feet auto``), and a checkpoint may name another (``train --feet``).
+plane. While a foot is free the offsets follow the restyled leg; while its lock blends in
+before touch-down they still follow it by the share of the lock not yet set
+(``stance_settle``), easing to a stop as it lands; from then on, until it lifts, they move
+at most ``stance_rate`` cm (``turn_rate`` degrees) a frame, by default not at all, so a
+planted foot lands where the restyled leg put it and stays there beside the input's: a
+standing performer's stance changes by a step, as a real one's does (a new style chosen
+live while standing shows in the feet at the next step). A foot's heading counts in
+proportion to its length on the floor: a foot pointing down has none to follow. Through a
+stream's first fade-in from pass-through (where it has one:
+``words.BlendSettings.start_restyled``) the targets are taken at the share the fade heads
+for, so a foot planted at the start stands in the restyled stance from the first frame
+instead of sliding into it as the body fades in. Each model kind names its lock (``FEET``,
+``--feet auto``), and a checkpoint may name another (``train --feet``).
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ class StanceOffset:
         self.cap, self.rate = settings.stance_cap, settings.stance_rate
         self.turn_cap, self.turn_rate = np.radians(settings.turn_cap), np.radians(settings.turn_rate)
         self.turn_unsure, self.turn_sure = settings.turn_unsure, settings.turn_sure
+        self.settle = settings.stance_settle
+        self._landed = [False, False]  # each foot reached its full lock since it was last free
         self._offset: list | None = None  # [[x, z, turn], [x, z, turn]] of the last frame
         # Before this frame the offsets follow the restyle freely: an offline clip's mirrored
         # lead-in, which is not shown (0 for a stream).
@@ -61,21 +66,21 @@ class StanceOffset:
         self.fade_until = int(fade_until)
         self._shown = TriplePole(fade_tau) if fade_tau > 0 else None
 
-    def track(self, t0: int, own: tuple, restyled: tuple, locked: np.ndarray,
+    def track(self, t0: int, own: tuple, restyled: tuple, weights: np.ndarray,
               shown: np.ndarray | None = None) -> np.ndarray | None:
         """Frames t0 .. t0+n-1 in order: the input's and the restyled (ankle, ball)
-        positions, each (n, 2, 3), which feet are locked (n, 2) and the share of the
+        positions, each (n, 2, 3), each foot's lock weight (n, 2: 0 free, 1 locked) and the share of the
         restyle shown in each frame (n,; None: all of it) -> the lock targets' offsets from
         the input's feet (n, 2, 3: x, z in cm and the turn in radians), or None when off."""
         if self.cap <= 0:
             return None
         wanted, sure = stance_targets(own, restyled, self.cap, self.turn_cap, self.turn_unsure, self.turn_sure)
         shown = [1.0] * len(wanted) if shown is None else np.broadcast_to(shown, (len(wanted),)).tolist()
-        return np.array(self.follow(t0, wanted.tolist(), locked.tolist(), sure.tolist(), shown))
+        return np.array(self.follow(t0, wanted.tolist(), np.asarray(weights, float).tolist(), sure.tolist(), shown))
 
-    def follow(self, t0: int, wanted: list, locked: list, sure: list, shown: list) -> list:
+    def follow(self, t0: int, wanted: list, weights: list, sure: list, shown: list) -> list:
         """``track``'s recurrence over frames t0 .. t0+n-1 on Python floats: the targets
-        (``stance_targets``), which feet are locked, how sure each turn is and the share of
+        (``stance_targets``), the feet's lock weights, how sure each turn is and the share of
         the restyle shown, per frame as nested lists -> the offsets, the same nesting (new
         lists). A rate limit is a recurrence; on floats because the daemon runs it one frame
         at a time per performer (numpy's per-call cost would be most of it)."""
@@ -83,17 +88,26 @@ class StanceOffset:
             wanted = [self._at_aim(t0 + i, frame, share) for i, (frame, share) in enumerate(zip(wanted, shown))]
         current = self._offset if self._offset is not None else wanted[0]
         out = []
-        for i, (frame, held, certainty) in enumerate(zip(wanted, locked, sure)):
+        for i, (frame, weight, certainty) in enumerate(zip(wanted, weights, sure)):
             settled = t0 + i >= self.free_until
             moved = []
             for foot in (0, 1):
                 (x, z, turn), (wx, wz, wturn) = current[foot], frame[foot]
                 dx, dz, dturn = wx - x, wz - z, (wturn - turn) * certainty[foot]
-                if held[foot] and settled:
+                w = weight[foot]
+                if w >= 1.0 or w <= 0.0:  # fully locked, or free again
+                    self._landed[foot] = w >= 1.0
+                if w > 0 and settled:
+                    # Settling (``stance_settle``): while the lock blends in, before the foot first
+                    # lands, the offset still moves by the share of the lock not yet set, so it
+                    # eases to a stop at touch-down; landed, it holds until the foot is free.
+                    ease = 1.0 - w if self.settle and not self._landed[foot] else 0.0
                     step = (dx * dx + dz * dz) ** 0.5
-                    if step > self.rate:
-                        dx, dz = dx * self.rate / step, dz * self.rate / step
-                    dturn = min(max(dturn, -self.turn_rate), self.turn_rate)
+                    allowed = max(self.rate, ease * step)
+                    if step > allowed:
+                        dx, dz = dx * allowed / step, dz * allowed / step
+                    allowed = max(self.turn_rate, ease * abs(dturn))
+                    dturn = min(max(dturn, -allowed), allowed)
                 moved.append([x + dx, z + dz, turn + dturn])
             current = moved
             out.append(current)
