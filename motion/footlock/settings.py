@@ -96,8 +96,9 @@ class ContactSettings:
 # pair default "input" reads better since its hips follow within 2 frames (88.1 % against
 # 75.4 % on the judges' mean, action 89.5 against 86.8 %, measured when a planted foot
 # still crept into a new stance: ``stance_rate``). The stance's hips settle slower (8
-# frames): with 2 the multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %) and popped more in
-# five styles of six, though active, elderly, exhausted and masculine gained 7-16 points.
+# frames): with 2 the multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %)
+# and popped more in five styles of six, though active, elderly, exhausted and masculine
+# gained 7-16 points.
 # "auto", the default, takes the model's own (``Restyler.feet``; figures in
 # models/checkpoints/MODEL_CARD.md).
 # The stance's cap (measured when a foot's offset was frozen where its lock starts to blend

@@ -69,9 +69,10 @@ class StanceOffset:
     def track(self, t0: int, own: tuple, restyled: tuple, weights: np.ndarray,
               shown: np.ndarray | None = None) -> np.ndarray | None:
         """Frames t0 .. t0+n-1 in order: the input's and the restyled (ankle, ball)
-        positions, each (n, 2, 3), each foot's lock weight (n, 2: 0 free, 1 locked) and the share of the
-        restyle shown in each frame (n,; None: all of it) -> the lock targets' offsets from
-        the input's feet (n, 2, 3: x, z in cm and the turn in radians), or None when off."""
+        positions, each (n, 2, 3), each foot's lock weight (n, 2: 0 free, 1 fully locked)
+        and the share of the restyle shown in each frame (n,; None: all of it) -> the lock
+        targets' offsets from the input's feet (n, 2, 3: x, z in cm and the turn in
+        radians), or None when off."""
         if self.cap <= 0:
             return None
         wanted, sure = stance_targets(own, restyled, self.cap, self.turn_cap, self.turn_unsure, self.turn_sure)
