@@ -25,7 +25,8 @@ def run_capacity(n, model, motion, seconds, bypass=False, hop=15, latency="relax
     received, _ = rx.stop()
     late = sum(s.blender.late_frames for s in d.sessions)
     p99 = max(s.latency.percentile(99) for s in d.sessions) * 1e3
-    return dict(n=n, dropped=d.dropped_ticks, late=late, delay=d.settings.delay, p99=p99, tick99=d.tick_lateness.percentile(99) * 1e3, cpu=cpu, wall=wall, received=received,
+    return dict(n=n, dropped=d.dropped_ticks, late=late, delay=d.settings.delay, p99=p99,
+                tick99=d.tick_lateness.percentile(99) * 1e3, cpu=cpu, wall=wall, received=received,
                 sent=sum(s.vmc.sender.datagrams_sent for s in d.sinks), busy=d.worker.busy_seconds,
                 calls=np.percentile(d.worker.call_ms, 99) if d.worker.call_ms else 0.0)
 

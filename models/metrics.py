@@ -34,7 +34,7 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   held-out walks' hips 12.2 degrees, past every real active walk (5.4-8.7; the judges read
   70 % of those windows as turning walks), and its stance lock towards feminine planted
   the walks' ankles 3.6 cm apart, crossing in 3-9 % of frames, where real feminine walks
-  keep 8.0-11.5.
+  keep 8.0-11.5 (until a landing foot's stance settled: 4.8 cm, no longer crossing).
 * floor penetration: how far a foot joint of the output sinks below the lowest the same
   joint goes in the input (the input's floor contact), per frame.
 * timing sync: Pearson correlation of per-frame body speed (mean over joints of speed

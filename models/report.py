@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .metrics import GAIT_STATISTICS
+from .eval_measures import gait_outside
 
 # The bar a shipped model must clear (issue "Restyled motion that holds up"), checked
 # on the "stream" setting of the evaluation; what the judges read is read on the panel's
@@ -351,8 +351,8 @@ def _gait_lines(m: dict) -> list[str]:
             continue
         cells = []
         for k, (low, high) in r.items():
-            mine, slack = per["proposed"][a]["gait"][k], GAIT_STATISTICS[k].tolerance
-            shown = _num(mine, 1) if low - slack <= mine <= high + slack else f"**{_num(mine, 1)}**"
+            mine = per["proposed"][a]["gait"][k]
+            shown = _num(mine, 1) if gait_outside({k: mine}, {k: (low, high)})[0] <= 1.0 else f"**{_num(mine, 1)}**"
             cells.append(f"{_num(per['input'][a]['gait'][k], 1)} / {shown} [{_num(low, 1)}–{_num(high, 1)}]")
         lines.append(f"| {a} | " + " | ".join(cells) + " |")
     return lines
