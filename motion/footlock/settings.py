@@ -65,6 +65,10 @@ class ContactSettings:
     # 1.70x the input's; only the blend-in leaves both as they were. (Scratch figures:
     # runs/settle/shape_in.py; the panel's in the model card, "A landing foot settles".)
     stance_settle: bool = False
+    # ...and whether, through an offline clip's mirrored lead-in (``StanceOffset.free_until``),
+    # a fully locked foot takes the mean of the restyled offsets over its contact so far
+    # (False: the last lead-in frame's, one frame of a stance that wanders).
+    stance_lead_mean: bool = False
     # ...and the foot's turn about the vertical against the input's (toes out or in):
     # at most this many degrees, moving at most this fast while locked (degrees a frame;
     # 0.04 would move the ball of a 15 cm foot 0.01 cm).
@@ -118,7 +122,8 @@ class ContactSettings:
 # 4: with 8 the pair default read exhausted 0.8 points less on its worst conv judge, where
 # it stands at the bar (its jerk was 1.008 already).
 FEET = {"input": ContactSettings(),
-        "stance": ContactSettings(stance_cap=8.0, pelvis_tau=8.0, release=8, stance_settle=True)}
+        "stance": ContactSettings(stance_cap=8.0, pelvis_tau=8.0, release=8, stance_settle=True,
+                              stance_lead_mean=True)}
 AUTO_FEET = "auto"  # the model's own choice (its ``feet``), else "input"
 
 

@@ -38,6 +38,8 @@ class StanceOffset:
         self.turn_cap, self.turn_rate = np.radians(settings.turn_cap), np.radians(settings.turn_rate)
         self.turn_unsure, self.turn_sure = settings.turn_unsure, settings.turn_sure
         self.settle = settings.stance_settle
+        self.lead_mean = settings.stance_lead_mean
+        self._lead_count = [0, 0]  # frames each foot has been fully locked in the lead-in
         self._landed = [False, False]  # each foot reached its full lock since it was last free
         self._offset: list | None = None  # [[x, z, turn], [x, z, turn]] of the last frame
         # Before this frame the offsets follow the restyle freely: an offline clip's mirrored
@@ -98,6 +100,12 @@ class StanceOffset:
                 w = weight[foot]
                 if w >= 1.0 or w <= 0.0:  # fully locked, or free again
                     self._landed[foot] = w >= 1.0
+                if not settled and self.lead_mean:
+                    # The lead-in (``stance_lead_mean``): a foot fully locked there stands at the mean
+                    # of the restyled offsets over its contact so far, not at its last frame's.
+                    self._lead_count[foot] = self._lead_count[foot] + 1 if w >= 1.0 else 0
+                    share = 1.0 / max(self._lead_count[foot], 1)
+                    dx, dz, dturn = dx * share, dz * share, dturn * share
                 if w > 0 and settled:
                     # Settling (``stance_settle``): while the lock blends in, before the foot first
                     # lands, the offset still moves by the share of the lock not yet set, so it
