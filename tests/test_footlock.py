@@ -394,3 +394,38 @@ def test_a_landing_foot_stands_where_its_restyled_swing_comes_to_rest():
     steps = np.abs(np.diff(settled[10:10 + ramp]))  # through the blend-in, before the full lock
     assert np.all(np.diff(steps) < 0) and steps[-1] < 0.3  # easing to a stop, not stopping dead
     np.testing.assert_allclose(settled[:10], -7.5)  # free before the lock, as before
+
+
+def test_a_foot_planted_through_the_lead_in_stands_at_the_restyled_stances_mean():
+    """A standing take's feet are planted from its first frame to its last, so the stance
+    taken at the end of an offline clip's mirrored lead-in is kept for the whole take. The
+    restyled stance wanders while a performer stands (the known-bad case: the lead-in's last
+    frame happens to stand on the input's ankle, 0 cm, where the restyle stands 3 cm out on
+    average): the last frame's offset is then the take's stance. With ``stance_lead_mean`` the
+    foot stands at the mean of the lead-in's offsets, and holds it once the clip is shown.
+    A foot that swings through the lead-in follows it frame by frame, as before."""
+    lead, shown = 40, 20
+    n = lead + shown
+    wander = 3.0 + 2.0 * np.sin(np.arange(n) * 2 * np.pi / 20.0)  # mean 3 cm out over whole periods
+    wander[lead - 1] = 0.0  # the lead-in's last frame: on the input's ankle
+    own_ankle = np.zeros((n, 2, 3))
+    own_ankle[:, 0, 0], own_ankle[:, 1, 0] = 5.0, -5.0
+    own = (own_ankle, own_ankle + [0.0, 0.0, 12.0])
+    ankle = own_ankle.copy()
+    ankle[:, 0, 0] += wander  # the left foot's restyled stance
+    ankle[:, 1, 0] -= wander  # the right foot's
+    weights = np.ones((n, 2))
+    weights[:, 1] = 0.0  # the right foot swings throughout
+
+    def offsets(lead_mean):
+        stance = StanceOffset(replace(STANCE, stance_lead_mean=lead_mean))
+        stance.free_until = lead
+        return stance.track(0, own, (ankle, ankle + [0.0, 0.0, 12.0]), weights)[:, :, 0]
+
+    last, mean = offsets(False), offsets(True)
+    np.testing.assert_allclose(last[lead:, 0], 0.0, atol=1e-12)  # the known-bad: one frame's stance, kept
+    np.testing.assert_allclose(mean[lead:, 0], mean[lead, 0], atol=1e-12)  # held once the clip is shown
+    np.testing.assert_allclose(mean[lead, 0], wander[:lead].mean(), atol=1e-9)  # the lead-in's mean
+    assert mean[lead, 0] > 2.8
+    np.testing.assert_allclose(mean[:, 1], -wander)  # a swinging foot follows frame by frame
+    np.testing.assert_allclose(last[:, 1], -wander)
