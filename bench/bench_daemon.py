@@ -48,6 +48,7 @@ import os
 import socket
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -295,14 +296,16 @@ def bench_footlock(model, motion, runs=5, performers=16):
     rotations, roots = clip.rotations.astype(np.float64), clip.root_positions.astype(np.float64)
     n = len(roots)
 
-    def per_frame(feet, pace, mode, delay=5):
+    def per_frame(feet, pace, mode, delay=5, settle=True):
         """CPU ms per performer-frame: "each" one lock, one frame per call (the daemon before
         the per-tick solve); "tick" ``performers`` locks, pushed, planned and solved in one
         call each per tick (the daemon now), with ``delay`` frames of look-ahead (1: the
         lock foresees the rest of its ramp, ``footlock.approach``); "whole" one lock, all
         frames in one call (``restyle``)."""
         count = performers if mode == "tick" else 1
-        locks = [FootLock.for_stream(clip.skeleton, delay, feet_for(feet, model, pace)) for _ in range(count)]
+        settings = feet_for(feet, model, pace)
+        settings = replace(settings, stance_settle=settings.stance_settle and settle)
+        locks = [FootLock.for_stream(clip.skeleton, delay, settings) for _ in range(count)]
         lock = locks[0]
         c0 = time.process_time()
         if mode == "whole":
@@ -322,11 +325,15 @@ def bench_footlock(model, motion, runs=5, performers=16):
         return (time.process_time() - c0) / (n * count) * 1e3
 
     rows = []
-    for feet in ("input", "stance"):
+    # the stance's offset settling through the blend-in (``stance_settle``) against the frozen
+    # offset it replaced: the baseline, in the same run
+    for feet, settle, label in (("input", True, "input"), ("stance", False, "stance, frozen (before)"),
+                                ("stance", True, "stance")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
-            each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay) for _ in range(runs)]))
+            each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, settle)
+                                                       for _ in range(runs)]))
                                       for mode, delay in (("each", 5), ("tick", 5), ("tick", 1), ("whole", 5)))
-            rows.append((feet, pace, f"{each:.3f}", f"{tick:.3f}", f"{low:.3f}", f"{whole:.3f}", f"{each / tick:.1f}x"))
+            rows.append((label, pace, f"{each:.3f}", f"{tick:.3f}", f"{low:.3f}", f"{whole:.3f}", f"{each / tick:.1f}x"))
     table(f"Foot lock CPU ms per performer-frame ({n} frames, median of {runs}; the input as the restyle)",
           ["--feet", "--pace", "one lock per call", f"{performers} performers, one solve per tick (daemon)",
            "the same, delay 1 (--latency low)", "all frames in one call (restyle)", "per call / per tick"], rows)
