@@ -16,8 +16,10 @@ proportion to its length on the floor: a foot pointing down has none to follow. 
 stream's first fade-in from pass-through (where it has one:
 ``words.BlendSettings.start_restyled``) the targets are taken at the share the fade heads
 for, so a foot planted at the start stands in the restyled stance from the first frame
-instead of sliding into it as the body fades in. Each model kind names its lock (``FEET``,
-``--feet auto``), and a checkpoint may name another (``train --feet``).
+instead of sliding into it as the body fades in; through an offline clip's mirrored lead-in
+a planted foot takes the mean of the restyled stance over its contact (``stance_lead_mean``),
+not one frame of it. Each model kind names its lock (``FEET``, ``--feet auto``), and a
+checkpoint may name another (``train --feet``).
 """
 
 from __future__ import annotations
@@ -43,7 +45,8 @@ class StanceOffset:
         self._landed = [False, False]  # each foot reached its full lock since it was last free
         self._offset: list | None = None  # [[x, z, turn], [x, z, turn]] of the last frame
         # Before this frame the offsets follow the restyle freely: an offline clip's mirrored
-        # lead-in, which is not shown (0 for a stream).
+        # lead-in, which is not shown (0 for a stream); a foot planted there takes the mean
+        # over its contact so far (``lead_mean``), which a standing take then keeps.
         self.free_until = 0
         # A stream that fades the restyle in from pass-through (``start_restyled=False``)
         # shows its stance only in part until this frame (``first_fade_end``; 0 for a stream
