@@ -39,7 +39,7 @@ import threading
 
 from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import feet_for, pace_of
+from stylecast.motion.footlock import feet_for, pace_of, quick_hips_of
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings, stream_settings_of
 
@@ -401,7 +401,7 @@ class Daemon:
             self.worker.set_restyler(model)
             self._take_stream_settings(model)  # for the streams that start from now on
             self.style = style_label(model)
-            self._set_pace(self.sessions)
+            self._follow_style(self.sessions)
             log.info("model %s is live", self.style)
         if self.remote is not None:
             self._serve_remote()
@@ -445,7 +445,7 @@ class Daemon:
         model = with_direction(self.worker.restyler, direction)
         self.worker.set_restyler(model)
         self.style = style_label(model)
-        self._set_pace(self.sessions)
+        self._follow_style(self.sessions)
 
     def set_style(self, pairs, sessions) -> None:
         """/stylecast/style and /stylecast/mix: crossfade ``sessions`` to the mix of
@@ -454,13 +454,16 @@ class Daemon:
         weights, label = style_mix(model, pairs)
         for s in sessions:
             s.set_style(weights, label, own=model.weights)
-        self._set_pace(sessions)
+        self._follow_style(sessions)
 
-    def _set_pace(self, sessions) -> None:
-        """The pace each of ``sessions`` covers ground at, after a new model, direction or
-        style (``--pace``; ``footlock.Pace`` moves the body's speed to it smoothly)."""
+    def _follow_style(self, sessions) -> None:
+        """The pace each of ``sessions`` covers ground at and how quickly its hips follow the
+        restyled legs, after a new model, direction or style (``--pace``; ``footlock.Pace``
+        and ``PelvisHeight`` move to them smoothly)."""
+        model = self.worker.restyler
         for s in sessions:
-            s.feet.pace.set_points(pace_of(self.worker.restyler, self.config.pace, s.style_target))
+            s.feet.pace.set_points(pace_of(model, self.config.pace, s.style_target))
+            s.feet.pelvis.set_quick_share(quick_hips_of(model, s.style_target))
 
     def _control_error(self, message: str) -> None:
         # Counted always, logged rarely: a sender repeating a bad command, or a flood of

@@ -62,7 +62,7 @@ class FootLock:
         self._blend = lock_kernel(self.ramp, self.release, self.back)
         self.set_offsets(skeleton.offsets)
         self.pelvis = PelvisHeight(settings.pelvis_tau, settings.pelvis_cap, settings.pelvis_flight_tau,
-                                   settings.flight_memory)
+                                   settings.flight_memory, settings.pelvis_quick_tau, settings.pelvis_quick_share)
         self.stance = StanceOffset(settings)
         self.pace = Pace(settings)
         self.frames = 0  # input frames pushed

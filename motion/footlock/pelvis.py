@@ -11,6 +11,11 @@ down, so the hips carry the restyled bend step by step, slower once the body has
 floor, where each short contact asks for a new gap; it is capped so a wild output cannot
 fold the legs. This moves the root, which the paper passes through: only
 vertically, only by what the restyled legs themselves ask for.
+
+A style may ask for quicker hips than its lock's (``ContactSettings.pelvis_quick_tau``, in
+the share ``pelvis_quick_share`` of the ground low-pass that the style mix sets: the
+restyler's ``quick_hips``); the share moves smoothly, so a live change of style never steps
+the hips.
 """
 
 from __future__ import annotations
@@ -29,14 +34,25 @@ class PelvisHeight:
     (standing, walking) and ``flight_tau`` once the body has left the floor within the last
     ``flight_memory`` frames (a run, a jump), crossfaded by a weight that is itself
     low-passed over ``flight_tau`` so the switch never steps. Without a ``flight_memory``
-    (or with ``flight_tau`` = ``tau``) it is the one low-pass."""
+    (or with ``flight_tau`` = ``tau``) it is the one low-pass.
 
-    def __init__(self, tau: float, cap: float, flight_tau: float | None = None, flight_memory: int = 0):
+    While a foot is down, the share ``quick_share`` (``set_quick_share``) of the ground
+    low-pass runs at ``quick_tau`` instead of ``tau``, the share itself low-passed over
+    ``tau``. The quick low-pass runs whatever the share, so its state is ready when a style
+    turns it on; at share 0 the output is the slow one's to the bit."""
+
+    def __init__(self, tau: float, cap: float, flight_tau: float | None = None, flight_memory: int = 0,
+                 quick_tau: float | None = None, quick_share: float = 0.0):
         self.tau, self.cap = float(tau), float(cap)
         self.flight_tau = self.tau if flight_tau is None else float(flight_tau)
         self.flight_memory = int(flight_memory)
         self._ground, self._flight = TriplePole(self.tau), TriplePole(self.flight_tau)
         self._weight = TriplePole(self.flight_tau)  # of the flight low-pass, 0..1
+        # The quick share (None: no quick low-pass, the tau is the quick one already).
+        self._quick = None if quick_tau is None or float(quick_tau) == self.tau else TriplePole(float(quick_tau))
+        self._share = TriplePole(self.tau)
+        self._share.settle_on(quick_share)  # a stream starts with its style's share
+        self._share_target = float(quick_share)
         self._held = 0.0  # the last gap seen with a foot planted
         self._since_flight = self.flight_memory  # frames since the last with no foot planted
 
@@ -60,7 +76,11 @@ class PelvisHeight:
         since = index - np.maximum.accumulate(np.where(seen, -1 - self._since_flight, index))
         self._since_flight = int(min(since[-1], self.flight_memory))
         weight = self._weight.run((since < self.flight_memory).astype(float))
-        return (1.0 - weight) * self._ground.run(held) + weight * self._flight.run(held)
+        ground = self._ground.run(held)
+        if self._quick is not None:
+            share = self._share.run(np.full(len(gaps), self._share_target))
+            ground = (1.0 - share) * ground + share * self._quick.run(held)
+        return (1.0 - weight) * ground + weight * self._flight.run(held)
 
     def drop_of_one_frame(self, gaps: list, planted: list) -> float:
         """``drops`` for one frame on Python floats (the daemon's case): two gaps, two flags."""
@@ -72,4 +92,13 @@ class PelvisHeight:
         self._since_flight = min(self._since_flight + 1, self.flight_memory) if down else 0
         x = min(max(self._held, -self.cap), self.cap)
         weight = self._weight.step(float(self._since_flight < self.flight_memory))
-        return (1.0 - weight) * self._ground.step(x) + weight * self._flight.step(x)
+        ground = self._ground.step(x)
+        if self._quick is not None:
+            share = self._share.step(self._share_target)
+            ground = (1.0 - share) * ground + share * self._quick.step(x)
+        return (1.0 - weight) * ground + weight * self._flight.step(x)
+
+    def set_quick_share(self, share: float) -> None:
+        """The share of the ground low-pass at ``quick_tau`` (a new style mix; 0..1); the
+        hips move to it over ``tau``."""
+        self._share_target = min(max(float(share), 0.0), 1.0)

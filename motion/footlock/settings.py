@@ -34,6 +34,11 @@ class ContactSettings:
     # the input's largest jerk). The stance keeps 8 (``FEET``).
     pelvis_tau: float = 2.0
     pelvis_cap: float = 12.0
+    # ...and the quicker time constant a style may ask for while a foot is down, in the
+    # share of the low-pass its mix sets (the restyler's ``quick_hips``; 0: pelvis_tau's
+    # alone). The stance keeps 8 frames, but masculine reads more as itself at 2 (below).
+    pelvis_quick_tau: float = 2.0
+    pelvis_quick_share: float = 0.0
     # ...and the time constant once the body has left the floor (no foot locked: 11-24 % of
     # a held-out run's frames, none of any other action's) within the last flight_memory
     # frames (0.5 s, a run's stride and more). A run plants each foot for a few frames
@@ -162,10 +167,19 @@ def pace_of(restyler, pace: str = "style", weights=None) -> tuple:
     return tuple(restyler.pace(weights))
 
 
+def quick_hips_of(restyler, weights=None) -> float:
+    """``ContactSettings.pelvis_quick_share`` with ``restyler`` (towards the style mix
+    ``weights``, where it takes one): 0 for a restyler that asks for none."""
+    if not hasattr(restyler, "quick_hips"):
+        return 0.0
+    return float(restyler.quick_hips(weights))
+
+
 def feet_for(name: str, restyler=None, pace: str = "style") -> ContactSettings:
     """``--feet NAME`` and ``--pace`` (checked beforehand) for ``restyler``: "auto" takes
     the model's own lock."""
     if name == AUTO_FEET:
         name = getattr(restyler, "feet", "input")
-    points = pace_of(restyler, pace)
-    return replace(FEET[name], pace=points) if points else FEET[name]
+    styled = {"pace": pace_of(restyler, pace), "pelvis_quick_share": quick_hips_of(restyler)}
+    styled = {key: value for key, value in styled.items() if value}
+    return replace(FEET[name], **styled) if styled else FEET[name]
