@@ -162,7 +162,7 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
                    for s in daemon.sessions)
         accepted = daemon.control.counts["accepted"]
         client.sendto(osc("/stylecast/style", "elderly", "alice"), ("127.0.0.1", port))
-        client.sendto(osc("/stylecast/mix", "active", 0.5, "feminine", 0.5, "bob"), ("127.0.0.1", port))
+        client.sendto(osc("/stylecast/mix", "active", 0.5, "masculine", 0.5, "bob"), ("127.0.0.1", port))
         client.sendto(osc("/stylecast/style", "sleepy"), ("127.0.0.1", port))
         assert wait_for(lambda: daemon.control.counts["accepted"] >= accepted + 3)
         # A word submitted before the change may still be in the model's thread (it was, once,
@@ -175,7 +175,7 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # Both performers' words in one call per tick, each row with its own mix.
         assert calls and all(n == 2 for n, _ in calls) and daemon.worker.faults == 0
         first, last = calls[0][1], calls[-1][1]
-        assert np.allclose(last[0], one_hot("elderly")) and np.allclose(last[1], parse_mix("active:1,feminine:1"))
+        assert np.allclose(last[0], one_hot("elderly")) and np.allclose(last[1], parse_mix("active:1,masculine:1"))
         # The crossfade (0.5 s = 30 frames, a word every 15): the first word after the
         # change is half youthful (the model's own mix), half elderly; the elderly weight
         # only grows, and reaches 1 one crossfade after the change.
@@ -184,12 +184,15 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         elderly = [w[0, e] for _, w in calls]
         assert np.all(np.diff(elderly) >= 0) and elderly[1] == 1.0 and elderly[-1] == 1.0
         lines = daemon.status_lines()
-        assert "elderly" in lines[0] and "active 0.50 + feminine 0.50" in lines[1]
+        assert "elderly" in lines[0] and "active 0.50 + masculine 0.50" in lines[1]
         # each performer's pace moved to its own style's: elderly walks slower; active and
-        # feminine walk faster, and a pace only slows (footlock.MAX_PACE_RATIO)
+        # masculine walk faster, and a pace only slows (footlock.MAX_PACE_RATIO)
         walk = 109.8 / 60  # cm a frame, the normal walks' pace
         alice, bob = (s.feet.pace.ratio(walk) for s in daemon.sessions)
         assert alice == pytest.approx(71.3 / 109.8) and bob == 1.0
+        # ...and its hips to its own style's: half of bob's mix is masculine, whose hips follow
+        # quickly (MultiStyleRestyler.quick_hips_of_style); none of alice's
+        assert [s.feet.pelvis.quick_share for s in daemon.sessions] == [0.0, 0.5]
         assert any("unknown style 'sleepy'" in r.getMessage() and "youthful" in r.getMessage() for r in caplog.records)
         # The delivered words are the model's own answer for each row's mix.
         word = np.stack([walk_clip(60).rotations])

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import ContactSettings, FootLock, PelvisHeight, leg_chain
+from stylecast.motion.footlock import FEET, ContactSettings, FootLock, PelvisHeight, leg_chain
 from tests.footlock_motion import SK, ON_INPUT_ANKLES, crouched, horizontal_speed, stepping
 
 
@@ -152,3 +152,66 @@ def test_the_pelvis_stands_on_the_feet_down_not_on_a_foot_the_release_still_hold
         heights.append(new_roots[:, 1])
     np.testing.assert_array_equal(heights[0], heights[1])
     assert np.ptp(heights[0]) > 1.0  # the hips did move with the feet down
+
+
+def walking_gaps(frames: int = 240, stride: int = 16):
+    """A walk's contacts (a foot always down, each in turn for ``stride`` frames); the
+    restyle asks for a gap of 4 cm on the left foot and 1 cm on the right, so the hips move
+    at every change of foot. Returns (gaps (n, 2), planted (n, 2))."""
+    left = (np.arange(frames) // stride) % 2 == 0
+    planted = np.stack([left, ~left], -1)
+    return np.where(planted, [4.0, 1.0], 0.0), planted
+
+
+def test_a_style_that_asks_for_quick_hips_gets_them_and_one_that_does_not_keeps_the_slow_ones_to_the_bit():
+    """The stance's hips follow over 8 frames; masculine asks for 2 (its share of the
+    low-pass: ``PelvisHeight.set_quick_share``, set by the style mix). At share 1 the hips
+    are the 2-frame low-pass's, at 0 the 8-frame one's bit for bit, in between in part."""
+    s = FEET["stance"]
+    gaps, planted = walking_gaps()
+
+    def drops(share=None, tau=s.pelvis_tau):
+        quick = {} if share is None else {"quick_tau": s.pelvis_quick_tau, "quick_share": share}
+        return PelvisHeight(tau, s.pelvis_cap, s.pelvis_flight_tau, s.flight_memory, **quick).drops(gaps, planted)
+
+    slow, quick = drops(), drops(tau=s.pelvis_quick_tau)
+    assert np.abs(slow - quick).max() > 1.0  # the two really differ through the walk's changes of foot
+    np.testing.assert_array_equal(drops(0.0), slow)
+    np.testing.assert_allclose(drops(1.0), quick, atol=1e-9)
+    np.testing.assert_allclose(drops(0.25), 0.75 * slow + 0.25 * quick, atol=1e-9)
+
+
+def test_a_live_change_of_style_moves_the_hips_to_the_quick_share_smoothly_frame_by_frame_as_a_clip():
+    """A live switch to a style with quick hips crossfades the share over the lock's own
+    low-pass: the hips never move faster than the quick low-pass alone moves them, where
+    switching the share at once steps them (the known-bad case), and a stream frame by frame
+    gives the clip's offsets."""
+    s = FEET["stance"]
+    gaps, planted = walking_gaps()
+    switch = 40  # mid-stride, where the slow hips lag the quick ones most
+
+    def hips(share_of_frame, frame_by_frame=False):
+        p = PelvisHeight(s.pelvis_tau, s.pelvis_cap, s.pelvis_flight_tau, s.flight_memory,
+                         s.pelvis_quick_tau, share_of_frame(0))
+        out = []
+        for t in range(len(gaps)) if frame_by_frame else (0, switch):
+            end = t + 1 if frame_by_frame else (switch if t == 0 else len(gaps))
+            p.set_quick_share(share_of_frame(t))
+            out.append(p.drops(gaps[t:end], planted[t:end]))
+        return np.concatenate(out)
+
+    def speed(drops):
+        return np.abs(np.diff(drops)).max()
+
+    switched = hips(lambda t: float(t >= switch))
+    quick = PelvisHeight(s.pelvis_quick_tau, s.pelvis_cap, s.pelvis_flight_tau, s.flight_memory).drops(gaps, planted)
+    assert speed(switched) <= speed(quick) + 1e-9
+    # The known-bad case: the share steps where the crossfade eases (an instant switch).
+    stepped = PelvisHeight(s.pelvis_tau, s.pelvis_cap, s.pelvis_flight_tau, s.flight_memory).drops(gaps, planted)
+    stepped[switch:] = quick[switch:]
+    assert speed(stepped) > 1.5 * speed(quick)
+    # ...and the crossfade reaches the quick hips (a triple pole: 99 % of the way within
+    # eight of its time constants)
+    settled = switch + 8 * int(s.pelvis_tau)
+    assert np.abs(switched[settled:] - quick[settled:]).max() < 0.05 * np.abs(quick).max()
+    np.testing.assert_allclose(hips(lambda t: float(t >= switch), frame_by_frame=True), switched, atol=1e-12)

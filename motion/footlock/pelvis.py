@@ -98,6 +98,11 @@ class PelvisHeight:
             ground = (1.0 - share) * ground + share * self._quick.step(x)
         return (1.0 - weight) * ground + weight * self._flight.step(x)
 
+    @property
+    def quick_share(self) -> float:
+        """The share of the ground low-pass at ``quick_tau`` the hips are moving to."""
+        return self._share_target
+
     def set_quick_share(self, share: float) -> None:
         """The share of the ground low-pass at ``quick_tau`` (a new style mix; 0..1); the
         hips move to it over ``tau``."""
