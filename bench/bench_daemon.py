@@ -296,15 +296,14 @@ def bench_footlock(model, motion, runs=5, performers=16):
     rotations, roots = clip.rotations.astype(np.float64), clip.root_positions.astype(np.float64)
     n = len(roots)
 
-    def per_frame(feet, pace, mode, delay=5, settle=True):
+    def per_frame(feet, pace, mode, delay=5, overrides=None):
         """CPU ms per performer-frame: "each" one lock, one frame per call (the daemon before
         the per-tick solve); "tick" ``performers`` locks, pushed, planned and solved in one
         call each per tick (the daemon now), with ``delay`` frames of look-ahead (1: the
         lock foresees the rest of its ramp, ``footlock.approach``); "whole" one lock, all
-        frames in one call (``restyle``)."""
+        frames in one call (``restyle``). ``overrides``: ``ContactSettings`` fields to set."""
         count = performers if mode == "tick" else 1
-        settings = feet_for(feet, model, pace)
-        settings = replace(settings, stance_settle=settings.stance_settle and settle)
+        settings = replace(feet_for(feet, model, pace), **(overrides or {}))
         locks = [FootLock.for_stream(clip.skeleton, delay, settings) for _ in range(count)]
         lock = locks[0]
         c0 = time.process_time()
@@ -326,11 +325,14 @@ def bench_footlock(model, motion, runs=5, performers=16):
 
     rows = []
     # the stance's offset settling through the blend-in (``stance_settle``) against the frozen
-    # offset it replaced: the baseline, in the same run
-    for feet, settle, label in (("input", True, "input"), ("stance", False, "stance, frozen (before)"),
-                                ("stance", True, "stance")):
+    # offset it replaced, the baseline in the same run; and the stance with the quick hips a
+    # style asks for (``pelvis_quick_share``: masculine's), two more low-passes a frame
+    for feet, overrides, label in (("input", {}, "input"),
+                                   ("stance", {"stance_settle": False}, "stance, frozen (before)"),
+                                   ("stance", {}, "stance"),
+                                   ("stance", {"pelvis_quick_share": 1.0}, "stance, quick hips (masculine)")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
-            each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, settle)
+            each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, overrides)
                                                        for _ in range(runs)]))
                                       for mode, delay in (("each", 5), ("tick", 5), ("tick", 1), ("whole", 5)))
             rows.append((label, pace, f"{each:.3f}", f"{tick:.3f}", f"{low:.3f}", f"{whole:.3f}", f"{each / tick:.1f}x"))
