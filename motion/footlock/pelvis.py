@@ -51,8 +51,8 @@ class PelvisHeight:
         # The quick share (None: no quick low-pass, the tau is the quick one already).
         self._quick = None if quick_tau is None or float(quick_tau) == self.tau else TriplePole(float(quick_tau))
         self._share = TriplePole(self.tau)
-        self._share.settle_on(quick_share)  # a stream starts with its style's share
-        self._share_target = float(quick_share)
+        self.set_quick_share(quick_share)
+        self._share.settle_on(self._share_target)  # a stream starts with its style's share
         self._held = 0.0  # the last gap seen with a foot planted
         self._since_flight = self.flight_memory  # frames since the last with no foot planted
 
