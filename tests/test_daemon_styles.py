@@ -190,9 +190,10 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         walk = 109.8 / 60  # cm a frame, the normal walks' pace
         alice, bob = (s.feet.pace.ratio(walk) for s in daemon.sessions)
         assert alice == pytest.approx(71.3 / 109.8) and bob == 1.0
-        # ...and its hips to its own style's: half of bob's mix is masculine, whose hips follow
-        # quickly (MultiStyleRestyler.quick_hips_of_style); none of alice's
-        assert [s.feet.pelvis.quick_share for s in daemon.sessions] == [0.0, 0.5]
+        # ...and its hips to its own style's (MultiStyleRestyler.quick_hips_of_style, by the
+        # mix's weights): bob's mix is half masculine (all quick) and half active (half quick);
+        # elderly asks for none
+        assert [s.feet.pelvis.quick_share for s in daemon.sessions] == [0.0, 0.75]
         assert any("unknown style 'sleepy'" in r.getMessage() and "youthful" in r.getMessage() for r in caplog.records)
         # The delivered words are the model's own answer for each row's mix.
         word = np.stack([walk_clip(60).rotations])
