@@ -311,6 +311,11 @@ def test_a_trained_checkpoint_loads_as_the_multistyle_kind(tmp_path):
     assert r.with_style("elderly").feet == "input" and r.with_style("exhausted:0.6,feminine:0.4").feet == "input"
     assert r.with_style("exhausted:0.4,feminine:0.6").feet == "stance"
     assert feet_for("auto", r.with_style("elderly"), "input") == FEET["input"]
+    # ...and the hips a style asks for (quick_hips_of_style): masculine's follow within 2
+    # frames, youthful's within the stance's 8, a mix's by its weights
+    assert feet_for("auto", r.with_style("masculine")).pelvis_quick_share == 1.0
+    assert feet_for("auto", r.with_style("youthful")) == replace(FEET["stance"], pace=r.with_style("youthful").pace())
+    assert r.with_style("masculine:0.5,youthful:0.5").quick_hips() == pytest.approx(0.5)
 
 
 def test_a_multistyle_checkpoint_with_foreign_styles_or_kind_is_refused(tmp_path):
