@@ -36,7 +36,8 @@ class ContactSettings:
     pelvis_cap: float = 12.0
     # ...and the quicker time constant a style may ask for while a foot is down, in the
     # share of the low-pass its mix sets (the restyler's ``quick_hips``; 0: pelvis_tau's
-    # alone). The stance keeps 8 frames, but masculine reads more as itself at 2 (``FEET``).
+    # alone). The stance keeps 8 frames, but masculine reads more as itself at 2, active
+    # with half of it (``FEET``).
     pelvis_quick_tau: float = 2.0
     pelvis_quick_share: float = 0.0
     # ...and the time constant once the body has left the floor (no foot locked: 11-24 % of
@@ -113,7 +114,9 @@ class ContactSettings:
 # frames): with 2 the multistyle model read feminine 79.6 -> 55.5 % (its walks 91 -> 2 %)
 # and popped more in five styles of six, though active, elderly, exhausted and masculine
 # gained 7-16 points; masculine asks for 2 (``pelvis_quick_share``: on both panels 66.6 ->
-# 86.1 % and 66.0 -> 72.2 % on the worst judge, its worst pop 2.75 -> 3.15x the input's).
+# 86.1 % and 66.0 -> 72.2 % on the worst judge, its worst pop 2.75 -> 3.15x the input's)
+# and active for half of it (60.6 -> 68.8 % and 70.5 -> 75.1 %; all of it put active's jerk
+# over its bar).
 # "auto", the default, takes the model's own (``Restyler.feet``; figures in
 # models/checkpoints/MODEL_CARD.md).
 # The stance's cap (measured when a foot's offset was frozen where its lock starts to blend
