@@ -86,14 +86,17 @@ class MultiStyleRestyler(Restyler):
         by word (``auto``) gives no pace: the input's is kept, as for an unknown style."""
         from .pace import pace_points
 
-        mix = self.weights if weights is None else np.asarray(weights, np.float64)
-        return pace_points(self.performer_style, dict(zip(self.style_names, mix.tolist())))
+        return pace_points(self.performer_style, self._mix_of(weights))
 
     def quick_hips(self, weights=None) -> float:
         """The share of the hips' low-pass at the quick time constant for the mix ``weights``
         (default this restyler's): each style's ``quick_hips_of_style`` by its weight."""
+        return float(sum(self.quick_hips_of_style.get(name, 0.0) * w for name, w in self._mix_of(weights).items()))
+
+    def _mix_of(self, weights=None) -> dict:
+        """{style: weight} of the mix ``weights`` (default this restyler's)."""
         mix = self.weights if weights is None else np.asarray(weights, np.float64)
-        return float(sum(self.quick_hips_of_style.get(name, 0.0) * w for name, w in zip(self.style_names, mix)))
+        return dict(zip(self.style_names, mix.tolist()))
 
     @classmethod
     def from_checkpoint(cls, path, tensors, meta, rep, device, **_) -> "MultiStyleRestyler":
