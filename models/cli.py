@@ -214,6 +214,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dynamics-judges", type=_count, default=DYNAMICS_PANEL,
                    help=f"style judges that see only velocities, a stricter style goal (default {DYNAMICS_PANEL}; "
                         "0: none)")
+    p.add_argument("--fresh-judges", action="store_true",
+                   help="train the judges anew instead of reading the panel an earlier evaluation trained on the "
+                        "same windows with the same code from the cache folder (it is overwritten)")
     p.set_defaults(func=run_eval)
 
 
@@ -448,6 +451,6 @@ def run_eval(args) -> int:
     path = evaluate(args.model, args.out, variants, max_files=args.max_files, hop=args.hop or DEFAULT_HOP,
                     data_dir=args.data, cache_dir=args.cache, seed=args.seed, direction=args.direction,
                     targets=args.target, source=args.source, panel=args.judges, dynamics=args.dynamics_judges,
-                    recurrent=args.recurrent_judges)
+                    recurrent=args.recurrent_judges, fresh_judges=args.fresh_judges)
     print(f"wrote {path}")
     return 0

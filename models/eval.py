@@ -203,13 +203,14 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
              max_files: int | None = None, hop: int = DEFAULT_HOP, data_dir=None, cache_dir=None,
              seed: int = 0, direction: str | None = None, log=print, targets: list[str] | None = None,
              source: str | None = None, panel: int = PANEL, dynamics: int = DYNAMICS_PANEL,
-             recurrent: int = RECURRENT_PANEL) -> Path:
+             recurrent: int = RECURRENT_PANEL, fresh_judges: bool = False) -> Path:
     """Evaluate ``model`` towards each of ``targets`` (default: the model's own target; a
     multi-style model needs them named). One target: the report in ``out``; several: one
     folder per target under ``out`` and ``out/summary.md`` beside them. The judges (a panel
     of ``panel`` conv judges of each kind, seeds ``seed``, ``seed + 1``, ..., ``recurrent`` GRU
     judges of each kind, and ``dynamics`` style judges that see only velocities) are trained once
-    and shared. ``source``: the style of the
+    and shared, and kept in the cache folder for the next evaluation on the same windows with
+    the same code (``judge_cache``; ``fresh_judges`` trains them anew). ``source``: the style of the
     held-out clips restyled (default the model's source; normal for a multi-style model,
     which takes any)."""
     import torch
@@ -247,7 +248,9 @@ def evaluate(model=None, out: Path | str = "runs/eval", variants: dict[str, str]
 
     torch.manual_seed(seed)
     per_style = None if max_files is None else 6 * max_files
-    judges = Judges(styles, actions, seed, panel, dynamics, recurrent).fit(training_motions(files, styles, per_style, cache_dir), skeleton, log)
+    judges = Judges(styles, actions, seed, panel, dynamics, recurrent).fit(
+        training_motions(files, styles, per_style, cache_dir), skeleton, log,
+        cache_dir=cache_dir or D.default_cache_dir(), fresh=fresh_judges)
     held = {s: D.load_motions(D.files_for_style(files, s, "val")[:max_files], cache_dir) for s in styles}
     real = {s: [judge_windows(m.rotations, m.root_positions, skeleton) for m in held[s]] for s in styles}
     # The judges on real held-out windows of every style: how far they can be trusted.

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import data as D
+from . import judge_cache as JC
 from . import representation as R
 from .classifier import WordClassifier
 from .metrics import world_positions
@@ -118,7 +119,10 @@ class Judges:
     def action(self) -> WordClassifier:
         return self.action_panel[0]
 
-    def fit(self, motions: list, skeleton, log=print) -> "Judges":
+    def fit(self, motions: list, skeleton, log=print, cache_dir=None, fresh: bool = False) -> "Judges":
+        """Train every panel on ``motions``' windows; with ``cache_dir``, read them from a
+        panel trained earlier on the same windows by the same code instead (unless
+        ``fresh``), or store the new one there (``judge_cache``)."""
         def windows_of(make):
             w = [make(m.rotations, m.root_positions, skeleton) for m in motions]
             labels = lambda of: np.concatenate([np.full(len(x), of(m)) for x, m in zip(w, motions)])
@@ -129,16 +133,38 @@ class Judges:
         xa, _, ya_long = windows_of(self.action_windows)
         features = x.shape[2] * x.shape[3]
 
-        def panel(classes, windows, labels):
-            return [WordClassifier(classes, features, s, design=d).fit(windows, labels) for d, s in self.members]
+        # name: (classes, windows, labels, [(design, seed, velocity_only)]), in training order
+        specs = {"style": (self.styles, x, ys, [(d, s, False) for d, s in self.members]),
+                 "action": (self.actions, xa, ya_long, [(d, s, False) for d, s in self.members]),
+                 "short_action": (self.actions, x, ya, [(d, s, False) for d, s in self.members]),
+                 "dynamics": (self.styles, x, ys, [("conv", s, True) for s in self.dynamics_seeds])}
 
-        self.style_panel = panel(self.styles, x, ys)
-        self.action_panel = panel(self.actions, xa, ya_long)
-        self.short_action_panel = panel(self.actions, x, ya)
-        self.dynamics_panel = [WordClassifier(self.styles, features, s, velocity_only=True).fit(x, ys)
-                               for s in self.dynamics_seeds]
+        def build(train: bool) -> dict[str, list[WordClassifier]]:
+            # Each judge is fitted as soon as it is built: building seeds torch's generator,
+            # and its fit's dropout draws from there on (the figures before the cache).
+            return {name: [WordClassifier(classes, features, s, velocity_only=v, design=d).fit(w, y) if train
+                           else WordClassifier(classes, features, s, velocity_only=v, design=d)
+                           for d, s, v in members]
+                    for name, (classes, w, y, members) in specs.items()}
+
+        path, how, panels = None, "trained", None
+        if cache_dir is not None:
+            config = {"styles": self.styles, "actions": self.actions, "members": self.members,
+                      "dynamics": self.dynamics_seeds}
+            path = JC.panel_path(cache_dir, JC.panel_key(config, [x, ys, xa, ya_long, ya]))
+            panels = None if fresh else build(train=False)
+            if panels is not None and JC.load_panels(path, panels):
+                how = f"read from {path} (trained earlier by this code on the same windows; --fresh-judges retrains)"
+            else:
+                panels = None
+        if panels is None:
+            panels = build(train=True)
+            if path is not None:
+                JC.save_panels(path, panels)
+        self.style_panel, self.action_panel = panels["style"], panels["action"]
+        self.short_action_panel, self.dynamics_panel = panels["short_action"], panels["dynamics"]
         log(f"{len(self.members)} style, {len(self.members)} action ({ACTION_WINDOW} frames), as many one-word "
-            f"action ({self.describe()}) and {len(self.dynamics_seeds)} dynamics judges trained on {len(x)} real "
+            f"action ({self.describe()}) and {len(self.dynamics_seeds)} dynamics judges {how}, on {len(x)} real "
             f"training windows ({len(xa)} of {ACTION_WINDOW} frames) of {len(self.styles)} styles")
         return self
 
