@@ -79,7 +79,9 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--blocks", type=_positive_int,
                    help="the generator's residual blocks at half rate (default: the shipped models' 3)")
     p.add_argument("--lambda-gram", type=float, default=0.0,
-                   help="weight of the velocity Gram-matrix dynamics-style loss (seed 004); default 0 = off")
+                   help="weight of the velocity Gram-matrix dynamics-style loss (seed 004): a pair's restyles "
+                        "against the batch's real target words; with --styles all against the mean of the target "
+                        "style's training words of the input's action (models/dynamics_term.py); default 0 = off")
     p.add_argument("--lambda-overlap", type=float, default=0.0,
                    help="weight of the loss that makes overlapping words of a take agree (what the stream "
                         "switches between); default 0 = off")
@@ -292,7 +294,7 @@ def run_train_multistyle(args) -> int:
     from .train_multistyle import MultiStyleTrainConfig, load_all_styles, train_multistyle
 
     _non_negative(lambda_identity=args.lambda_identity, lambda_action=args.lambda_action,
-                  lambda_mismatch=args.lambda_mismatch, lambda_step=args.lambda_step)
+                  lambda_mismatch=args.lambda_mismatch, lambda_step=args.lambda_step, lambda_gram=args.lambda_gram)
     try:
         net = MultiStyleConfig(**GENERATORS[args.generator], **_network_options(args))
     except ValueError as exc:
@@ -300,7 +302,7 @@ def run_train_multistyle(args) -> int:
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
                                 max_words=args.max_words, lambda_identity=args.lambda_identity,
                                 lambda_mismatch=args.lambda_mismatch, lambda_action=args.lambda_action,
-                                lambda_step=args.lambda_step, network=net,
+                                lambda_step=args.lambda_step, lambda_gram=args.lambda_gram, network=net,
                                 feet=args.feet, mirror=args.mirror,
                                 **_given(ema=args.ema, epochs=args.epochs, words_per_epoch=args.words_per_epoch))
     train, val, actions = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)

@@ -43,6 +43,7 @@ from . import losses as L
 from .averaging import WeightAverage
 from .content import ActionLabels, FrozenClassifier
 from .device import Determinism, pick_device
+from .dynamics_term import ActionDynamics
 from .multistyle import MultiStyleConfig, MultiStyleGAN
 from .networks import count_parameters, to_channels
 from .representation import get_representation
@@ -54,7 +55,8 @@ from .train import TrainConfig, shared_metadata
 KIND = "multistyle"
 GENERATOR_PREFIX = "G."
 CODE_TABLE = GENERATOR_PREFIX + "codes.table"
-FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "action", "step", "G_total",
+FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "action", "step", "gram",
+          "G_total",
           "val_cycle", "val_diff")
 
 
@@ -77,7 +79,7 @@ class MultiStyleTrainConfig(TrainConfig):
 
     def to_dict(self) -> dict:
         d = super().to_dict()
-        for unused in ("style_a", "style_b", "loss", "lambda_coherence", "lambda_gram", "lambda_overlap",
+        for unused in ("style_a", "style_b", "loss", "lambda_coherence", "lambda_overlap",
                        "lambda_style", "action_view"):
             d.pop(unused)
         return d
@@ -106,7 +108,8 @@ def multistyle_metadata(cfg, rep, code_table, extra: dict | None = None) -> dict
         **shared_metadata(cfg, rep, f"all {len(STYLES)} styles ({', '.join(STYLES)})"),
         "loss": "cycle-diff, any pair (x -> target -> own style)",
         "lambdas": {"cycle": cfg.lambda_cycle, "diff": cfg.lambda_diff, "identity": cfg.lambda_identity,
-                    "action": cfg.lambda_action, "mismatch": cfg.lambda_mismatch, "step": cfg.lambda_step},
+                    "action": cfg.lambda_action, "mismatch": cfg.lambda_mismatch, "step": cfg.lambda_step,
+                    "gram": cfg.lambda_gram},
     }
     meta.update(extra or {})
     return meta
@@ -114,7 +117,8 @@ def multistyle_metadata(cfg, rep, code_table, extra: dict | None = None) -> dict
 
 class MultiStyleTrainer:
     """``words``: {style: heading-free quaternion words (N, 60, J, 4)} for every style;
-    ``actions``: their actions, needed when ``cfg.lambda_action`` or ``cfg.lambda_step`` > 0;
+    ``actions``: their actions, needed when ``cfg.lambda_action``, ``cfg.lambda_step`` or
+    ``cfg.lambda_gram`` > 0;
     ``skeleton``: the actors' humanoid skeleton, needed when ``cfg.lambda_step`` > 0."""
 
     def __init__(self, cfg, words: dict, val: dict | None = None, device: str = "auto",
@@ -140,8 +144,8 @@ class MultiStyleTrainer:
         self.epoch = 0
         self.eye = torch.eye(len(STYLES), device=self.device)
         self.average = WeightAverage(self.model, (GENERATOR_PREFIX,), cfg.ema) if cfg.ema > 0 else None
-        self.content = self.actions = self.steps = None
-        if cfg.lambda_action > 0 or cfg.lambda_step > 0:
+        self.content = self.actions = self.steps = self.dynamics = None
+        if cfg.lambda_action > 0 or cfg.lambda_step > 0 or cfg.lambda_gram > 0:
             self.actions = self._actions(actions)
         if cfg.lambda_action > 0:
             self._fit_content(actions)
@@ -150,13 +154,17 @@ class MultiStyleTrainer:
                 raise UserError("--lambda-step needs the actors' skeleton; train from the dataset folder")
             self.steps = StepTerm(self.rep, skeleton, self.device, [to_channels(w) for w in self.words], self.actions,
                                   len(actions.classes))
+        if cfg.lambda_gram > 0:
+            self.dynamics = ActionDynamics([to_channels(w) for w in self.words], self.actions, len(actions.classes),
+                                           self.device)
 
     def _actions(self, actions: ActionLabels | None) -> list:
         """Each style's training words' actions, as tensors."""
         import torch
 
         if actions is None or any(len(actions.train.get(s, ())) != len(w) for s, w in zip(STYLES, self.words)):
-            flag = "--lambda-action" if self.cfg.lambda_action > 0 else "--lambda-step"
+            flag = next(f for f, w in (("--lambda-action", self.cfg.lambda_action), ("--lambda-step", self.cfg.lambda_step),
+                                       ("--lambda-gram", self.cfg.lambda_gram)) if w > 0)
             raise UserError(f"{flag} needs the action of every training word; train from the dataset folder")
         return [torch.from_numpy(actions.train[s]) for s in STYLES]
 
@@ -206,6 +214,11 @@ class MultiStyleTrainer:
             stl = self.steps(fake, x, actions, src, tgt)
             total = total + cfg.lambda_step * stl
             step = stl.item()
+        gram = 0.0
+        if self.dynamics is not None:
+            gml = self.dynamics(fake, tgt, actions)
+            total = total + cfg.lambda_gram * gml
+            gram = gml.item()
         self.opt_g.zero_grad(set_to_none=True)
         total.backward()
         self.opt_g.step()
@@ -224,7 +237,7 @@ class MultiStyleTrainer:
         d.backward()
         self.opt_d.step()
         return {"G_adv": adv.item(), "D": d.item(), "cycle": cyc.item(), "diff": dif.item(), "identity": ident,
-                "action": action, "step": step, "G_total": total.item()}
+                "action": action, "step": step, "gram": gram, "G_total": total.item()}
 
     def epoch_plan(self, rng: np.random.Generator) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Batches of (style, word index, target) for one epoch, equal shares per style."""
