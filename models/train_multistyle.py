@@ -13,7 +13,9 @@ first; G(x, t) keeps x's action) are optional (default off), as is the discrimin
 mismatch term (lambda_mismatch: real words of style s scored as fake on the head of the
 target t they were sent to; measured in MODEL_CARD.md, "A discriminator that tells the
 styles apart", and not adopted), as is the step term (lambda_step, ``steps.py``: G(x, t)'s
-feet step no higher than style t's do against x's style, action by action).
+feet step no higher than style t's do against x's style, action by action), and the
+dynamics term (lambda_gram, ``dynamics_term.py``: G(x, t)'s velocity Gram matrices against
+style t's own words of x's action).
 
 One epoch = ``words_per_epoch`` words, an equal share from every style, drawn without
 replacement with a generator seeded by (seed, epoch); targets come from the same
