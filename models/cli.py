@@ -78,10 +78,11 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
                    help="the generator's hidden channels (default: the shipped models' 96)")
     p.add_argument("--blocks", type=_positive_int,
                    help="the generator's residual blocks at half rate (default: the shipped models' 3)")
-    p.add_argument("--lambda-gram", type=float, default=0.0,
+    p.add_argument("--lambda-gram", type=float,
                    help="weight of the velocity Gram-matrix dynamics-style loss (seed 004): a pair's restyles "
-                        "against the batch's real target words; with --styles all against the mean of the target "
-                        "style's training words of the input's action (models/dynamics_term.py); default 0 = off")
+                        "against the batch's real target words (default 0 = off); with --styles all against the "
+                        "mean of the target style's training words of the input's action (models/dynamics_term.py; "
+                        "default 1, 0 = off)")
     p.add_argument("--lambda-overlap", type=float, default=0.0,
                    help="weight of the loss that makes overlapping words of a take agree (what the stream "
                         "switches between); default 0 = off")
@@ -302,9 +303,10 @@ def run_train_multistyle(args) -> int:
     cfg = MultiStyleTrainConfig(batch_size=args.batch_size, seed=args.seed, representation=args.representation,
                                 max_words=args.max_words, lambda_identity=args.lambda_identity,
                                 lambda_mismatch=args.lambda_mismatch, lambda_action=args.lambda_action,
-                                lambda_step=args.lambda_step, lambda_gram=args.lambda_gram, network=net,
+                                lambda_step=args.lambda_step, network=net,
                                 feet=args.feet, mirror=args.mirror,
-                                **_given(ema=args.ema, epochs=args.epochs, words_per_epoch=args.words_per_epoch))
+                                **_given(ema=args.ema, epochs=args.epochs, words_per_epoch=args.words_per_epoch,
+                                         lambda_gram=args.lambda_gram))
     train, val, actions = load_all_styles(cfg, args.data, args.cache, progress=not args.no_progress)
     from . import data as D
 
@@ -342,7 +344,7 @@ def run_train(args) -> int:
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
                       batch_size=args.batch_size, seed=args.seed,
-                      representation=args.representation, max_words=args.max_words, lambda_gram=args.lambda_gram,
+                      representation=args.representation, max_words=args.max_words, **_given(lambda_gram=args.lambda_gram),
                       lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
                       lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, hold_from=args.hold_from,
                       lambda_position_adv=args.lambda_position_adv, feet=args.feet, mirror=args.mirror,

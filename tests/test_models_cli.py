@@ -271,6 +271,8 @@ def test_train_width_and_blocks_size_the_generator_that_is_written_and_served(ki
                  "--width", "40", "--blocks", "2", "--threads", "1", "--out", str(run), "--no-progress"]) == 0
     meta = json.loads((run / "model.json").read_text())
     assert (meta["network"]["g_hidden"], meta["network"]["g_blocks"]) == (40, 2)
+    # Each kind's own default dynamics term: the multistyle recipe's on, the pair's off.
+    assert meta["lambdas"]["gram"] == (1.0 if kind else 0.0)
     restyler = Restyler.load(str(run / "model.safetensors"))
     generator = restyler.model if kind else restyler.model.G_a2b
     assert len(generator.blocks) == 2

@@ -64,7 +64,10 @@ def _tiny_words(n: int = 24) -> dict:
 
 
 def _tiny_cfg(**kw) -> MultiStyleTrainConfig:
-    return MultiStyleTrainConfig(**{"epochs": 1, "words_per_epoch": 28, "batch_size": 7, "network": TINY, **kw})
+    """A tiny recipe; without the dynamics term, which needs every word's action (its own
+    tests, ``test_dynamics_term.py``, train with it)."""
+    return MultiStyleTrainConfig(**{"epochs": 1, "words_per_epoch": 28, "batch_size": 7, "network": TINY,
+                                    "lambda_gram": 0.0, **kw})
 
 
 # --- the network ------------------------------------------------------------------------------
