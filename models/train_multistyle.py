@@ -58,8 +58,7 @@ KIND = "multistyle"
 GENERATOR_PREFIX = "G."
 CODE_TABLE = GENERATOR_PREFIX + "codes.table"
 FIELDS = ("epoch", "seconds", "cpu_seconds", "G_adv", "D", "cycle", "diff", "identity", "action", "step", "gram",
-          "G_total",
-          "val_cycle", "val_diff")
+          "G_total", "val_cycle", "val_diff")
 
 
 @dataclass
@@ -94,6 +93,9 @@ class MultiStyleTrainConfig(TrainConfig):
     @classmethod
     def from_dict(cls, d: dict) -> "MultiStyleTrainConfig":
         d = dict(d)
+        # A run saved before the dynamics term existed trained without it: resumed, it is
+        # told apart from today's default instead of silently taking the term on.
+        d.setdefault("lambda_gram", 0.0)
         d["network"] = MultiStyleConfig(**d.get("network", {}))
         return cls(**d)
 

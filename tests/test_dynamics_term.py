@@ -88,3 +88,13 @@ def test_the_multistyle_trainer_pays_it_when_asked_and_refuses_it_without_action
     with pytest.raises(UserError, match="--lambda-gram needs the action of every training word") as e:
         MultiStyleTrainer(_tiny_cfg(lambda_gram=1.0), words, device="cpu")
     assert "\n" not in str(e.value)
+
+
+def test_a_run_saved_before_the_term_resumes_without_it_and_todays_default_is_refused_for_it():
+    from stylecast.models.train_multistyle import MultiStyleTrainConfig
+
+    saved = MultiStyleTrainConfig(lambda_gram=0.0).to_dict()
+    del saved["lambda_gram"]  # what a run's config held before the term existed
+    assert MultiStyleTrainConfig.from_dict(saved).lambda_gram == 0.0
+    assert MultiStyleTrainConfig().lambda_gram == 1.0  # the recipe's default today
+    assert MultiStyleTrainConfig.from_dict(MultiStyleTrainConfig().to_dict()).lambda_gram == 1.0
