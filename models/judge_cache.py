@@ -5,11 +5,13 @@ Training the panel is most of an evaluation's time (1,634 of 1,740 s for one tar
 ``--threads 1`` on the Intel Xeon VM, 2026-11-30), and it is deterministic: the same code,
 windows, seeds, torch and thread count give the same weights bit for bit on the same
 machine. So the panel is stored under a key that covers all of those (``panel_key``): the
-source of the modules that build and train the judges, every training window and label, the members' designs and seeds, torch's version and its CPU threads, and the
-processor's architecture. Change any of them and the key changes, so a stale panel is
-never read; nothing else is keyed, so a panel is never trained twice for nothing. Files are
-safetensors (nothing is unpickled) and written atomically, like the decoded-clip cache
-beside them (``data.default_cache_dir()``). ``stylecast eval --fresh-judges`` trains anew.
+source of the modules that build and train the judges, every training window and label,
+the members' designs and seeds, torch's version and its CPU threads, and the processor's
+architecture. Change any of them and the key changes, so a stale panel is never read. (Any
+edit of those modules, a comment too, retrains; another processor of the same architecture
+could round a retrained panel differently, so a cache stays on the machine that wrote it,
+as the decoded clips beside it do, ``data.default_cache_dir()``.) Files are safetensors
+(nothing is unpickled) and written atomically. ``stylecast eval --fresh-judges`` trains anew.
 """
 
 from __future__ import annotations
