@@ -56,7 +56,7 @@ def test_real_words_read_low_on_their_own_style_and_high_on_another_or_another_a
     for wrong_style in (0, 2):
         assert float(term(x, torch.full((len(x),), wrong_style), a)) > 0.05
     assert float(term(x, torch.full((len(x),), 1), 1 - a)) > 0.5
-    # Unseen words of the right style and action read near it: half of a fresh draw.
+    # Unseen words of the right style and action read near it: 20 words of a fresh draw.
     fresh, fresh_a = _words_and_actions(seed=1)
     near = float(term(fresh[1][:20], torch.full((20,), 1), fresh_a[1][:20]))
     assert near < 0.2 * float(term(fresh[1][:20], torch.full((20,), 2), fresh_a[1][:20]))
@@ -90,7 +90,9 @@ def test_the_multistyle_trainer_pays_it_when_asked_and_refuses_it_without_action
     assert "\n" not in str(e.value)
 
 
-def test_a_run_saved_before_the_term_resumes_without_it_and_todays_default_is_refused_for_it():
+def test_a_config_saved_before_the_term_reads_as_without_it_and_one_saved_today_as_with_it():
+    """What `--resume` compares a run against (`epoch_loop.read_train_state`): an old run
+    must not read as having had the term, or resuming it would switch the term on."""
     from stylecast.models.train_multistyle import MultiStyleTrainConfig
 
     saved = MultiStyleTrainConfig(lambda_gram=0.0).to_dict()
