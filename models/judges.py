@@ -142,21 +142,22 @@ class Judges:
         def build(train: bool) -> dict[str, list[WordClassifier]]:
             # Each judge is fitted as soon as it is built: building seeds torch's generator,
             # and its fit's dropout draws from there on (the figures before the cache).
-            return {name: [WordClassifier(classes, features, s, velocity_only=v, design=d).fit(w, y) if train
-                           else WordClassifier(classes, features, s, velocity_only=v, design=d)
+            fitted = (lambda j, w, y: j.fit(w, y)) if train else (lambda j, w, y: j)
+            return {name: [fitted(WordClassifier(classes, features, s, velocity_only=v, design=d), w, y)
                            for d, s, v in members]
                     for name, (classes, w, y, members) in specs.items()}
 
-        path, how, panels = None, "trained", None
+        path, panels = None, None
         if cache_dir is not None:
             config = {"styles": self.styles, "actions": self.actions, "members": self.members,
                       "dynamics": self.dynamics_seeds}
             path = JC.panel_path(cache_dir, JC.panel_key(config, [x, ys, xa, ya_long, ya]))
-            panels = None if fresh else build(train=False)
-            if panels is not None and JC.load_panels(path, panels):
-                how = f"read from {path} (trained earlier by this code on the same windows; --fresh-judges retrains)"
-            else:
-                panels = None
+            if not fresh:
+                panels = build(train=False)
+                if not JC.load_panels(path, panels):
+                    panels = None
+        how = "trained" if panels is None else \
+            f"read from {path} (trained earlier by this code on the same windows; --fresh-judges retrains)"
         if panels is None:
             panels = build(train=True)
             if path is not None:
