@@ -344,8 +344,9 @@ def run_train(args) -> int:
     cfg = TrainConfig(style_a=args.style_a, style_b=args.style_b, loss=args.loss,
                       **_given(epochs=args.epochs, words_per_epoch=args.words_per_epoch),
                       batch_size=args.batch_size, seed=args.seed,
-                      representation=args.representation, max_words=args.max_words, **_given(lambda_gram=args.lambda_gram),
-                      lambda_overlap=args.lambda_overlap, lambda_action=args.lambda_action,
+                      representation=args.representation, max_words=args.max_words,
+                      **_given(lambda_gram=args.lambda_gram), lambda_overlap=args.lambda_overlap,
+                      lambda_action=args.lambda_action,
                       lambda_style=args.lambda_style, lambda_hold=args.lambda_hold, hold_from=args.hold_from,
                       lambda_position_adv=args.lambda_position_adv, feet=args.feet, mirror=args.mirror,
                       action_view=args.action_view, **_given(ema=args.ema))

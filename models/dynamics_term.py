@@ -19,8 +19,8 @@ weight does not depend on the representation's scale. A restyled run towards eld
 asked to move as elderly runs move, not as the average elderly word does.
 
 Measured (MODEL_CARD.md, "A dynamics term per action"): at weight 1 the six targets' mean on
-the worst judge rose in every pair of runs, the dynamics judges read more, and the runs
-still read as normal runs.
+the worst judge rose in every pair of runs and the dynamics judges read more, but runs
+still read as normal runs towards every target but exhausted.
 """
 
 from __future__ import annotations
