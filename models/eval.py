@@ -330,7 +330,7 @@ def _evaluate_target(proposed: Restyler, out: Path, variants: dict, t0: float, *
                "fmd_floor_parts": ref.fmd,
                "real_target_jerk_ratio": ref.jerk, "real_target_hold_ratio": ref.hold,
                "real_target_skate_ratio": ref.skate, "real_target_step_ratio": ref.step,
-               "real_target_gait_range": ref.gait,
+               "real_target_gait_range": ref.gait, "real_target_swing_dip_share": ref.swing_dips,
                "travel_ceiling": ceiling, "tempo_ceiling": tempo,
                "results": results,
                "plain_words_seam_ratio": plain_seam, "seconds": time.perf_counter() - t0,
@@ -354,7 +354,8 @@ class _RealReference:
     per action (a take's own holds: real motion has no input to hold still against); and
     the range of each gait statistic over every real target-style take of each action,
     training and held-out (``gait``: {action: {name: (lowest, highest)}}: what any real
-    performer of the style did)."""
+    performer of the style did), and the share of those takes' swings whose ankle speed
+    dips mid-swing (``swing_dips``: {action: share}, where they have swings)."""
 
     features: list
     labels: np.ndarray
@@ -364,6 +365,7 @@ class _RealReference:
     skate: dict
     step: dict
     gait: dict
+    swing_dips: dict
 
     @classmethod
     def of(cls, target, source, files, actions, skeleton, judges, held, real, per_style, cache_dir) -> "_RealReference":
@@ -387,13 +389,17 @@ class _RealReference:
                 skate[a] = mean_ratio(k[target], k[source])
                 st = {s: np.concatenate([M.step_heights(p) for p in pos[s]]) for s in pos}
                 step[a] = mean_ratio(st[target], st[source])
-        gait = {}
+        gait, swing_dips = {}, {}
         for a in actions:
-            takes = [M.gait_statistics(m.rotations, M.world_positions(m.rotations, m.root_positions, skeleton))
-                     for m in target_train + held[target] if m.file.action == a]
-            if takes:
+            motions = [m for m in target_train + held[target] if m.file.action == a]
+            pos = [M.world_positions(m.rotations, m.root_positions, skeleton) for m in motions]
+            if motions:
+                takes = [M.gait_statistics(m.rotations, p) for m, p in zip(motions, pos)]
                 gait[a] = {k: (min(t[k] for t in takes), max(t[k] for t in takes)) for k in M.GAIT_STATISTICS}
-        return cls(features, labels, fmd, jerk, hold, skate, step, gait)
+            dips = np.concatenate([M.swing_dips(p) for p in pos]) if pos else np.zeros(0)
+            if dips.size:
+                swing_dips[a] = float(dips.mean())
+        return cls(features, labels, fmd, jerk, hold, skate, step, gait, swing_dips)
 
 
 def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: int, skeleton, judges,
@@ -439,6 +445,8 @@ def _judge_setting(variant: Variant, clips: list, live: bool, skip: int, hop: in
     for a, figures in summary["per_action"].items():
         if a in ref.gait:
             figures["gait_outside"], figures["gait_outside_of"] = gait_outside(figures["gait"], ref.gait[a])
+        if a in ref.swing_dips and figures["swings"]:
+            figures["swing_dips_excess"] = figures["swing_dip_share"] - ref.swing_dips[a]
     summary["overall"]["worst_action"] = worst_actions(summary["per_action"])
     fmd = fmd_figures([np.concatenate(per_judge) for per_judge in zip(*feats)],
                       window_labels([f[0] for f in feats], act_idx), ref.features, ref.labels, actions)

@@ -16,7 +16,9 @@ from . import metrics as M
 # 1.21-1.32, under the 1.5 bar, for several releases (MODEL_CARD.md, "Standing feet stay
 # where they landed").
 # ``gait_outside``: how far a gait statistic lies outside the real target takes' range (1 inside).
-WORST_ACTION_KEYS = ("slide_ratio", "skate_ratio", "gait_outside")
+# ``swing_dips_excess``: the share of swings whose ankle speed dips mid-swing, less the real
+# target takes' share in the same action (``metrics.swing_dips``).
+WORST_ACTION_KEYS = ("slide_ratio", "skate_ratio", "gait_outside", "swing_dips_excess")
 
 
 def clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_roots: np.ndarray, skeleton) -> dict:
@@ -35,6 +37,7 @@ def clip_measures(inp: np.ndarray, out: np.ndarray, roots: np.ndarray, out_roots
             "sync": M.timing_sync(p_in, p_out), "penetration": M.floor_penetration(p_in, p_out),
             "peak_jerk_ratio": M.peak_jerk_ratio(jerk_in, jerk_out),
             "hinge_in": M.off_hinge(inp), "hinge_out": M.off_hinge(out),
+            "swing_dips_in": M.swing_dips(p_in), "swing_dips_out": M.swing_dips(p_out),
             "gait_in": M.gait_statistics(inp, p_in), "gait_out": M.gait_statistics(out, p_out)}
 
 
@@ -89,6 +92,8 @@ def summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_acti
     peaks = [c["peak_jerk_ratio"] for c in per_clip]
     hinge_in = np.concatenate([c["hinge_in"] for c in per_clip])
     hinge_out = np.concatenate([c["hinge_out"] for c in per_clip])
+    dips_in = np.concatenate([c["swing_dips_in"] for c in per_clip])
+    dips_out = np.concatenate([c["swing_dips_out"] for c in per_clip])
     return {
         "windows": int(pred.shape[1]),
         "judged_target": float(np.mean(style_by_judge)) if style_by_judge else float("nan"),
@@ -123,6 +128,9 @@ def summarise(per_clip: list[dict], windows_pred: list[np.ndarray], windows_acti
         "floor_penetration_p99_cm": float(np.percentile(sink, 99)) if sink.size else float("nan"),
         "off_hinge_p99_deg": float(np.percentile(hinge_out, 99)) if hinge_out.size else float("nan"),
         "off_hinge_input_p99_deg": float(np.percentile(hinge_in, 99)) if hinge_in.size else float("nan"),
+        "swings": int(dips_out.size),
+        "swing_dip_share": float(dips_out.mean()) if dips_out.size else float("nan"),
+        "swing_dip_share_input": float(dips_in.mean()) if dips_in.size else float("nan"),
         "gait": {k: float(np.mean([c["gait_out"][k] for c in per_clip])) for k in M.GAIT_STATISTICS},
         "gait_input": {k: float(np.mean([c["gait_in"][k] for c in per_clip])) for k in M.GAIT_STATISTICS},
     }

@@ -35,6 +35,9 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   70 % of those windows as turning walks), and its stance lock towards feminine planted
   the walks' ankles 3.6 cm apart, crossing in 3-9 % of frames, where real feminine walks
   keep 8.0-11.5 (until a landing foot's stance settled: 4.8 cm, no longer crossing).
+* swing dips (``swing_dips``): whether an ankle's horizontal speed keeps one hump through
+  each swing of the motion's own feet, as real walks' do (a second hump is a foot that
+  jumps or stalls in the air).
 * floor penetration: how far a foot joint of the output sinks below the lowest the same
   joint goes in the input (the input's floor contact), per frame.
 * timing sync: Pearson correlation of per-frame body speed (mean over joints of speed
@@ -181,6 +184,44 @@ def skate_samples(positions: np.ndarray) -> np.ndarray:
             speed = np.linalg.norm(np.diff(positions[:, j][:, [0, 2]], axis=0), axis=-1)
             parts.append(np.where(h < SKATE_HEIGHT, (2.0 - 2.0 ** (h / SKATE_HEIGHT)) * speed, 0.0))
     return np.concatenate(parts)
+
+
+# A swing (``swing_dips``): a run of frame pairs in which the motion's OWN foot is not
+# planted (``planted`` of the motion itself), at least SWING_FRAMES long, inside the take.
+# A dip: a local minimum of the ankle's horizontal speed under DIP_DEPTH of the lower of the
+# highest speeds before and after it in the swing, both at least DIP_PEAK of the swing's
+# top (a wobble at a swing's slow ends is not one). Real walks have none: 0 of 777 held-out
+# swings of walks and turning walks over all seven styles; real runs 31 % (a heel kicked
+# up behind), so the figure is read against real takes of the same action. The foot lock
+# made one in every swing of the multistyle model's held-out walks made elderly (a jump
+# forward at lift-off, then a slump to 40 of the input's 210 cm/s: ``motion.footlock.swing``),
+# which no other measure here flagged.
+SWING_FRAMES = 8
+DIP_DEPTH = 0.75
+DIP_PEAK = 0.3
+
+
+def swing_dips(positions: np.ndarray) -> np.ndarray:
+    """(T, J, 3) -> per swing of either ankle (``STEP_JOINTS``) in the take, in order, 1 where
+    its horizontal speed dips mid-swing and 0 where it keeps one hump (see SWING_FRAMES)."""
+    out = []
+    for side, ankle in zip(FOOT_JOINTS, STEP_JOINTS):
+        speed, free = horizontal_speed(positions, ankle), ~planted(positions)[side]
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], free.astype(np.int8), [0]])))
+        for start, end in zip(edges[::2], edges[1::2]):
+            if end - start < SWING_FRAMES or start == 0 or end == len(free):
+                continue
+            out.append(float(_dips(speed[start:end]) > 0))
+    return np.array(out)
+
+
+def _dips(v: np.ndarray) -> int:
+    """How many dips one swing's speeds (n,) have (``swing_dips``)."""
+    before, after = np.maximum.accumulate(v), np.maximum.accumulate(v[::-1])[::-1]
+    inner = np.arange(1, len(v) - 1)
+    low = (v[inner] <= v[inner - 1]) & (v[inner] <= v[inner + 1])
+    sides = np.minimum(before[inner - 1], after[inner + 1])
+    return int(np.count_nonzero(low & (v[inner] < DIP_DEPTH * sides) & (sides >= DIP_PEAK * v.max())))
 
 
 STEP_JOINTS = ("LeftFoot", "RightFoot")  # the ankles

@@ -42,6 +42,11 @@ GOALS = (
     # reports before it.
     ("gait statistics inside the real target takes' range, worst action (factor outside; stricter than the issue)",
      "gait_outside_worst_action", lambda v, m: v <= 1.0, "<= 1"),
+    # Stricter than the issue (metrics.swing_dips): an ankle's speed keeps one hump through
+    # each swing, as real walks' do; the share of swings with a mid-swing dip, beyond the real
+    # target takes' share in the same action. Absent from reports before it.
+    ("swings whose ankle speed dips mid-swing, beyond the real target takes' share, worst action "
+     "(stricter than the issue)", "swing_dips_excess_worst_action", lambda v, m: v <= 0.10, "<= 0.10"),
     # Stricter than the issue (metrics.held): where the input holds a hand or the head still,
     # the output's speed there over the input's. Absent from reports before it.
     ("held hands and head: speed / input's where the input holds still (stricter than the issue)",
@@ -286,6 +291,7 @@ PER_ACTION = (("judged target", "judged_target", _pct), ("action kept (2 s)", "a
                lambda v: _num(v, 2)),
               ("gait statistics outside the real target takes' range (factor; 1 inside)", "gait_outside",
                lambda v: _num(v, 2)),
+              ("swings whose ankle speed dips mid-swing (real walks: none)", "swing_dip_share", _pct),
               ("timing sync", "timing_sync", lambda v: _num(v, 3)))
 
 
@@ -320,16 +326,20 @@ def _real_motion_lines(m: dict) -> list[str]:
     holds = m.get("real_target_hold_ratio", {})  # absent from reports before the hold measure
     skates = m.get("real_target_skate_ratio", {})  # ...and the skating measure
     steps = m.get("real_target_step_ratio", {})  # ...and the step height
+    dips = m.get("real_target_swing_dip_share")  # ...and the swings' dips (a share, not a ratio)
     lines = ["", f"## Real motion: jerk (and holds, skating, step height) of real {m['target']} clips over real "
              f"{m['source']} clips of the same action", "",
              "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else "")
-             + (" skating on own contacts |" if skates else "") + (" step height |" if steps else ""),
-             "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "") + ("---|" if steps else "")]
+             + (" skating on own contacts |" if skates else "") + (" step height |" if steps else "")
+             + (f" swings dipping mid-swing (real {m['target']} takes' share) |" if dips is not None else ""),
+             "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "") + ("---|" if steps else "")
+             + ("---|" if dips is not None else "")]
     for a, g in m["real_target_jerk_ratio"].items():
         lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |"
                      + (f" {_num(holds.get(a), 2)} |" if holds else "")
                      + (f" {_num(skates.get(a), 2)} |" if skates else "")
-                     + (f" {_num(steps.get(a), 2)} |" if steps else ""))
+                     + (f" {_num(steps.get(a), 2)} |" if steps else "")
+                     + (f" {_pct(dips.get(a))} |" if dips is not None else ""))
     return lines
 
 

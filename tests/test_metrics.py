@@ -125,6 +125,57 @@ def test_a_heel_dragged_along_the_floor_raises_the_skating_though_the_planted_sl
     assert left(planted_foot_positions(slide_cm=1.0)).mean() == pytest.approx(1.0)
 
 
+def _swings(speed_of, steps: int = 4, stand: int = 20, swing: int = 30, stride_cm: float = 60.0) -> np.ndarray:
+    """Positions (T, J, 3): the left foot stands ``stand`` frames, then swings ``stride_cm``
+    forward over ``swing`` frames, ``steps`` times, with its horizontal speed through a swing
+    shaped as ``speed_of(u)`` (u in (0, 1)), 10 cm up at mid-swing; the rest far above."""
+    u = (np.arange(swing) + 0.5) / swing
+    step = stride_cm * np.cumsum(speed_of(u)) / np.sum(speed_of(u))
+    forward, height = [np.zeros(stand)], [np.zeros(stand)]
+    for k in range(steps):
+        forward += [k * stride_cm + step, np.full(stand, (k + 1) * stride_cm)]
+        height += [10.0 * np.sin(np.pi * u), np.zeros(stand)]
+    forward, height = np.concatenate(forward), np.concatenate(height)
+    p = np.full((len(forward), J, 3), 100.0)
+    for joint, rest, ahead in ((FOOT, 8.0, 0.0), (TOES, 2.0, 10.0)):
+        p[:, joint] = np.stack([np.full_like(forward, 10.0), rest + height, forward + ahead], axis=1)
+    return p
+
+
+def test_a_swing_whose_ankle_stalls_or_jumps_mid_air_reads_as_dipping_and_a_real_swing_does_not():
+    """A swing's ankle speed with one hump (as real walks') reads no dip; the same swings
+    slumping mid-way (the pace's lag taken back as the foot lifted) or jumping forward as
+    they lift and then slowing (the lock's gap crossed in its release) read a dip in every
+    swing; a wobble at a swing's slow ends does not count."""
+    one_hump = lambda u: np.sin(np.pi * u)  # noqa: E731
+    slumped = lambda u: np.sin(np.pi * u) * (1.0 - 0.7 * np.exp(-(((u - 0.45) / 0.1) ** 2)))  # noqa: E731
+    jumped = lambda u: np.sin(np.pi * u) + 2.0 * np.exp(-(((u - 0.12) / 0.05) ** 2))  # noqa: E731
+    wobbly = lambda u: np.sin(np.pi * u) * (1.0 - 0.9 * np.exp(-(((u - 0.88) / 0.03) ** 2)))  # noqa: E731
+    swings = M.swing_dips(_swings(one_hump))
+    assert len(swings) == 4 and swings.sum() == 0  # every swing inside the take, the left foot's
+    assert M.swing_dips(_swings(slumped)).tolist() == [1.0] * 4
+    assert M.swing_dips(_swings(jumped)).tolist() == [1.0] * 4
+    assert M.swing_dips(_swings(wobbly)).sum() == 0
+    assert M.swing_dips(planted_foot_positions()).size == 0  # no swing: nothing to read
+
+
+def test_dipping_swings_beyond_the_real_takes_fail_the_worst_action_goal():
+    """The goal reads the share of dipping swings less the real target takes' share in the
+    same action: a run dipping as often as real runs passes, walks dipping 40 % fail."""
+    from stylecast.models.eval_measures import worst_actions
+    from stylecast.models.report import goals_met
+
+    overall = {"judged_target": 1.0, "action_kept": 1.0, "jerk_ratio": {"all": 1.0}, "slide_ratio": 1.0,
+               "timing_sync": 1.0, "seam_ratio_relative": 1.0, "fmd_judges": [1.0]}
+    per_action = {"run": {"swing_dips_excess": 0.02}, "walk": {"swing_dips_excess": 0.40}}
+    overall["worst_action"] = worst_actions(per_action)
+    assert overall["worst_action"]["swing_dips_excess"] == {"value": 0.40, "action": "walk"}
+    assert not goals_met(overall, [1.0])["swing_dips_excess_worst_action"]
+    per_action["walk"]["swing_dips_excess"] = 0.0
+    overall["worst_action"] = worst_actions(per_action)
+    assert goals_met(overall, [1.0])["swing_dips_excess_worst_action"]
+
+
 def test_step_height_reads_how_high_a_foot_swings_and_nothing_for_a_standing_one():
     """The known-bad case it is there for: a restyle that steps higher than its input (the
     multistyle model towards elderly, whose real walks step lower). A foot swung 12 cm up
@@ -768,3 +819,18 @@ def test_gait_statistics_tell_real_styles_apart_on_real_walks(bandai_root):
         factor, name = gait_outside(s, ranges)
         assert factor > 1.0 and name == "hips_twist_deg", (s, ranges)
         assert s["stance_width_cm"] > ranges["stance_width_cm"][1]  # wider too, within the tolerance
+
+
+def test_real_walks_of_every_style_keep_one_hump_per_swing(bandai_root):
+    """The held-out walks and turning walks of all seven styles: no swing's ankle speed dips
+    (0 of 777), which is what the swing-dip goal reads a walk's restyle against."""
+    from stylecast.models.data import bandai_skeleton, files_for_style, list_files, load_motion
+    from stylecast.models.styles import STYLES
+
+    files = list_files(bandai_root / "dataset-2" / "data")
+    skeleton = bandai_skeleton(files)
+    swings = [M.swing_dips(M.world_positions(m.rotations, m.root_positions, skeleton))
+              for m in (load_motion(f) for s in STYLES for f in files_for_style(files, s, "val")
+                        if f.action.startswith("walk"))]
+    swings = np.concatenate(swings)
+    assert len(swings) > 700 and swings.sum() == 0
