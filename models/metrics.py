@@ -191,11 +191,13 @@ def skate_samples(positions: np.ndarray) -> np.ndarray:
 # A dip: a local minimum of the ankle's horizontal speed under DIP_DEPTH of the lower of the
 # highest speeds before and after it in the swing, both at least DIP_PEAK of the swing's
 # top (a wobble at a swing's slow ends is not one). Real walks have none: 0 of 777 held-out
-# swings of walks and turning walks over all seven styles; real runs 31 % (a heel kicked
-# up behind), so the figure is read against real takes of the same action. The foot lock
-# made one in every swing of the multistyle model's held-out walks made elderly (a jump
-# forward at lift-off, then a slump to 40 of the input's 210 cm/s: ``motion.footlock.swing``),
-# which no other measure here flagged.
+# swings of walks and turning walks over all seven styles; real runs 0-99 % by style (a
+# heel kicked up behind: active 99 %, elderly none), so the figure is read against real
+# takes of the style and the action. The foot lock makes one in every swing of the
+# multistyle model's held-out walks made elderly: its input lock lets a lifting foot go
+# over 4 frames, crossing the gap to the restyled swing in those frames, and the pace's
+# lag is taken back at 15 % a frame as it lifts (a slump to 40 of the input's 210 cm/s;
+# MODEL_CARD.md, "Swings that dip"). No other measure here flagged it.
 SWING_FRAMES = 8
 DIP_DEPTH = 0.75
 DIP_PEAK = 0.3
