@@ -206,9 +206,9 @@ DIP_PEAK = 0.3
 def swing_dips(positions: np.ndarray) -> np.ndarray:
     """(T, J, 3) -> per swing of either ankle (``STEP_JOINTS``) in the take, in order, 1 where
     its horizontal speed dips mid-swing and 0 where it keeps one hump (see SWING_FRAMES)."""
-    out = []
+    out, masks = [], planted(positions)
     for side, ankle in zip(FOOT_JOINTS, STEP_JOINTS):
-        speed, free = horizontal_speed(positions, ankle), ~planted(positions)[side]
+        speed, free = horizontal_speed(positions, ankle), ~masks[side]
         edges = np.flatnonzero(np.diff(np.concatenate([[0], free.astype(np.int8), [0]])))
         for start, end in zip(edges[::2], edges[1::2]):
             if end - start < SWING_FRAMES or start == 0 or end == len(free):

@@ -323,23 +323,21 @@ def _action_taken_lines(res: dict, actions: list[str]) -> list[str]:
 
 def _real_motion_lines(m: dict) -> list[str]:
     """Real target-style clips over real source-style clips of the same action."""
-    holds = m.get("real_target_hold_ratio", {})  # absent from reports before the hold measure
-    skates = m.get("real_target_skate_ratio", {})  # ...and the skating measure
-    steps = m.get("real_target_step_ratio", {})  # ...and the step height
-    dips = m.get("real_target_swing_dip_share")  # ...and the swings' dips (a share, not a ratio)
+    # Columns beside the jerk, each absent from reports written before its measure:
+    # (title, the report's figures by action, format)
+    extra = [(title, m[key], fmt) for title, key, fmt in (
+        ("held hands and head (each take's own holds)", "real_target_hold_ratio", lambda v: _num(v, 2)),
+        ("skating on own contacts", "real_target_skate_ratio", lambda v: _num(v, 2)),
+        ("step height", "real_target_step_ratio", lambda v: _num(v, 2)),
+        (f"swings dipping mid-swing (real {m['target']} takes' share)", "real_target_swing_dip_share", _pct))
+        if m.get(key)]
     lines = ["", f"## Real motion: jerk (and holds, skating, step height) of real {m['target']} clips over real "
              f"{m['source']} clips of the same action", "",
-             "| action | all | hands | feet |" + (" held hands and head (each take's own holds) |" if holds else "")
-             + (" skating on own contacts |" if skates else "") + (" step height |" if steps else "")
-             + (f" swings dipping mid-swing (real {m['target']} takes' share) |" if dips is not None else ""),
-             "|---|---|---|---|" + ("---|" if holds else "") + ("---|" if skates else "") + ("---|" if steps else "")
-             + ("---|" if dips is not None else "")]
+             "| action | all | hands | feet |" + "".join(f" {title} |" for title, _, _ in extra),
+             "|---|---|---|---|" + "---|" * len(extra)]
     for a, g in m["real_target_jerk_ratio"].items():
         lines.append(f"| {a} | {_num(g['all'], 2)} | {_num(g['hands'], 2)} | {_num(g['feet'], 2)} |"
-                     + (f" {_num(holds.get(a), 2)} |" if holds else "")
-                     + (f" {_num(skates.get(a), 2)} |" if skates else "")
-                     + (f" {_num(steps.get(a), 2)} |" if steps else "")
-                     + (f" {_pct(dips.get(a))} |" if dips is not None else ""))
+                     + "".join(f" {fmt(figures.get(a))} |" for _, figures, fmt in extra))
     return lines
 
 
