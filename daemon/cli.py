@@ -71,10 +71,11 @@ def _daemon_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unbundled", dest="bundled", action="store_false", default=None,
                    help="send one OSC message per datagram (for receivers without bundle support)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
-    p.add_argument("--feet", default=None, metavar="auto|input|stance",
+    p.add_argument("--feet", default=None, metavar="auto|input|stance|path",
                    help="planted feet on the input's own ankles (input) or where the restyled legs stand "
-                        "(stance: keeps a style's stance); default auto: the model's own (the pair model input, "
-                        "the multistyle model stance, input for elderly or exhausted)")
+                        "(stance: keeps a style's stance), or on the input's ankles with the feet in the air on "
+                        "the input's own path too (path); default auto: the model's own (the pair model input, "
+                        "the multistyle model stance, path for elderly or exhausted)")
     p.add_argument("--pace", default=None, metavar="style|input",
                    help="the avatar covers ground at the target style's pace (style, the default: it falls "
                         "behind a performer who walks on, and walking back takes it back) or at the "

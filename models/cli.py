@@ -108,7 +108,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--mirror", action="store_true",
                    help="train on every take and its left-right mirror image (a left turn mirrored is a right "
                         "turn); the epoch's size is unchanged")
-    p.add_argument("--feet", metavar="input|stance",
+    p.add_argument("--feet", metavar="input|stance|path",
                    help="the foot lock `serve` and `restyle` use with this model under --feet auto, recorded in "
                         "the checkpoint (default: its kind's own, input for a pair, stance for --styles all)")
     p.add_argument("--out", type=Path, required=True, help="output folder (checkpoints, losses.csv, model)")
@@ -176,9 +176,10 @@ def _add_restyle(sub: argparse._SubParsersAction) -> None:
                    help="render as the live daemon does (no mirrored pre-roll: the first words hold the first "
                         "frame): the same frames `stylecast serve` sends for this clip")
     p.add_argument("--map", type=Path, help="JSON/TOML table of source joint name -> humanoid bone")
-    p.add_argument("--feet", default="auto", metavar="auto|input|stance",
-                   help="planted feet on the input's own ankles (input) or where the restyled legs stand "
-                        "(stance); default auto: the model's own, as `serve --feet`")
+    p.add_argument("--feet", default="auto", metavar="auto|input|stance|path",
+                   help="planted feet on the input's own ankles (input), where the restyled legs stand "
+                        "(stance), or on the input's ankles with the feet in the air on the input's own path "
+                        "too (path); default auto: the model's own, as `serve --feet`")
     p.add_argument("--pace", default="style", metavar="style|input",
                    help="cover ground at the target style's pace (style, the default: an exhausted run is "
                         "slower, its strides shorter) or at the input's own (input: the root's path passes "

@@ -1,5 +1,5 @@
 """Synthetic motion the foot lock's tests share: a standing figure that steps, restyles that lean,
-spread and crouch it, the two lock settings of --feet, and a joint's horizontal speed."""
+spread and crouch it, the lock settings of --feet, and a joint's horizontal speed."""
 
 from __future__ import annotations
 
@@ -63,6 +63,7 @@ def spread(q: np.ndarray, degrees: np.ndarray) -> np.ndarray:
 
 
 ON_INPUT_ANKLES, STANCE = FEET["input"], FEET["stance"]  # --feet input (the default), --feet stance
+ON_INPUT_PATH = FEET["path"]  # --feet path
 
 
 def crouched(q: np.ndarray, degrees: float = 15.0) -> np.ndarray:

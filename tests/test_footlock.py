@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import (AUTO_FEET, LEGS, ContactSettings, FootLock, StanceOffset, feet_for, leg_chain,
-                                       solve_lock_jobs)
+from stylecast.motion.footlock import (AUTO_FEET, FEET, LEGS, ContactSettings, FootLock, StanceOffset, feet_for,
+                                       leg_chain, solve_lock_jobs)
 from stylecast.motion.footlock.contacts import lock_kernel
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.smoothing import CorrectionFilter
 from stylecast.motion.words import BlendSettings
-from tests.footlock_motion import (J, SK, ON_INPUT_ANKLES, STANCE, crouched, horizontal_speed, restyled, spread,
-                                   stepping)
+from tests.footlock_motion import (J, SK, ON_INPUT_ANKLES, ON_INPUT_PATH, STANCE, crouched, horizontal_speed, restyled,
+                                   spread, stepping)
 
 
 def test_a_planted_foot_stays_still_and_legs_keep_their_length():
@@ -100,14 +100,15 @@ def test_a_planted_foot_stands_no_further_than_the_stance_cap_beside_the_input()
     assert np.abs(offset[1:] - STANCE.stance_cap).max() < 0.05  # as far as allowed, and no further
 
 
-@pytest.mark.parametrize("paced, sight", [(False, 4), (True, 4), (False, 1), (True, 1)])
-def test_streaming_a_frame_at_a_time_equals_the_whole_clip(paced, sight):
+@pytest.mark.parametrize("paced, sight, feet", [(False, 4, "input"), (True, 4, "input"), (False, 1, "input"),
+                                               (True, 1, "input"), (True, 4, "path"), (True, 1, "path")])
+def test_streaming_a_frame_at_a_time_equals_the_whole_clip(paced, sight, feet):
     """Applied ``sight`` frames behind the newest pushed (a stream's delay), as for the whole
     clip pushed at once: with a sight short of the ramp the lock foresees what the whole
     clip would show it, and reads nothing of it."""
     roots, q = stepping(180)
     out_in = restyled(q)
-    settings = ContactSettings()
+    settings = FEET[feet]
     mix = None
     if paced:  # gliding on at 0.3 cm a frame (slow enough to plant), slowed to 0.8 of it as the restyle fades in
         roots = roots + np.outer(0.3 * np.arange(len(q)), [0.0, 0.0, 1.0])
@@ -140,7 +141,7 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
     """The daemon solves every performer's frame of a tick in one vectorised call, each
     with its own proportions and lock; each must come out as it does alone (to rounding:
     one lock alone takes its feet on Python floats). Five
-    performers: three body sizes, both locks (two stances of different settings), one
+    performers: three body sizes, all three locks (two stances of different settings), two
     gliding off (the floor step, not the lock) at a slower pace."""
     roots, q = stepping(200)
     glide = roots.copy()
@@ -149,7 +150,8 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
                   (SK.with_offsets(SK.offsets * 0.85), ON_INPUT_ANKLES, roots * [1, 0.85, 1], restyled(q, 20.0)),
                   (SK.with_offsets(SK.offsets * 1.1), STANCE, roots * [1, 1.1, 1], restyled(q)),
                   (SK, replace(ON_INPUT_ANKLES, pace=((2.0, 1.5),)), glide, crouched(q)),  # and a pace
-                  (SK, OTHER_STANCE, roots, restyled(q, 20.0))]  # a stance of other settings beside the first
+                  (SK, OTHER_STANCE, roots, restyled(q, 20.0)),  # a stance of other settings beside the first
+                  (SK, replace(ON_INPUT_PATH, pace=((2.0, 1.5),)), glide, restyled(q))]  # swings on the input's path
     together = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     alone = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     lifted = locked = 0
@@ -430,3 +432,38 @@ def test_a_foot_planted_through_the_lead_in_stands_at_the_restyled_stances_mean(
     assert mean[lead, 0] > 2.8
     np.testing.assert_allclose(mean[:, 1], -wander)  # a swinging foot follows frame by frame
     np.testing.assert_allclose(last[:, 1], -wander)
+
+
+def test_towards_elderly_a_swing_on_the_inputs_path_keeps_one_hump(bandai_root):
+    """The multistyle model made elderly (pace 0.65 in walks), a held-out walk through the
+    stream: with its own lock (``path``) a free foot goes along the input's ankle path less
+    its pace shift, so its speed keeps the input's one hump through each swing. The
+    known-bad case, the restyled swing with the input lock: a lifting foot crosses the gap
+    to the restyled swing in the 4 frames of the release, then slows, and every swing dips
+    (``metrics.swing_dips``; the real walks of every style: none of 777)."""
+    from stylecast.models import metrics as M
+    from stylecast.models.restyle import restyle_rotations
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.bvh import read_bvh
+    from stylecast.motion.humanoid import Retarget
+    from stylecast.motion.resample import resample
+    from stylecast.motion.words import stream_settings_of
+
+    clip = read_bvh(bandai_root / "dataset-2" / "data" / "dataset-2_walk_normal_010.bvh.gz")
+    humanoid = resample(Retarget.for_clip(clip).to_humanoid(clip), 60.0)
+    inp, roots = humanoid.rotations.astype(np.float64), humanoid.root_positions.astype(np.float64)
+    r = Restyler.load("multistyle").with_performer_style("normal").for_target("elderly")
+    own = feet_for(AUTO_FEET, r)
+    assert own.swing_path and own.pace  # the model's own lock for elderly, at the style's pace
+    jerk_in = M.jerk(M.world_positions(inp, roots, humanoid.skeleton)).max()
+
+    def swings(contacts):
+        out, moved = restyle_rotations(inp, r.restyle_words, contacts=contacts, roots=roots,
+                                       skeleton=humanoid.skeleton, **stream_settings_of(r))
+        p = M.world_positions(out, moved, humanoid.skeleton)
+        return M.swing_dips(p), M.jerk(p).max() / jerk_in
+
+    dips, pops = swings(own)
+    dips_restyled, _ = swings(replace(own, swing_path=False))
+    assert len(dips) >= 4 and dips.sum() == 0 and pops < 1.5
+    assert dips_restyled.mean() >= 0.75

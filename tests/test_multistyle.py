@@ -309,11 +309,11 @@ def test_a_trained_checkpoint_loads_as_the_multistyle_kind(tmp_path):
     assert r.with_style("elderly:0.5,youthful:0.5").target_style == "elderly 0.50 + youthful 0.50"
     with pytest.raises(UserError, match="no directions"):
         r.with_direction("b2a")
-    # --feet auto: the stance, but on the input's ankles for a mix led by elderly or exhausted
+    # --feet auto: the stance, but on the input's ankles and path for a mix led by elderly or exhausted
     assert r.feet == "stance" and r.with_style("youthful").feet == "stance"
-    assert r.with_style("elderly").feet == "input" and r.with_style("exhausted:0.6,feminine:0.4").feet == "input"
+    assert r.with_style("elderly").feet == "path" and r.with_style("exhausted:0.6,feminine:0.4").feet == "path"
     assert r.with_style("exhausted:0.4,feminine:0.6").feet == "stance"
-    assert feet_for("auto", r.with_style("elderly"), "input") == FEET["input"]
+    assert feet_for("auto", r.with_style("elderly"), "input") == FEET["path"]
     # ...and the hips a style asks for (quick_hips_of_style): masculine's follow within 2
     # frames, youthful's within the stance's 8, a mix's by its weights
     assert feet_for("auto", r.with_style("masculine")).pelvis_quick_share == 1.0

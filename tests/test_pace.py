@@ -47,6 +47,11 @@ def test_a_pace_ratio_is_the_line_through_its_points():
     assert faster.ratio(2.0) == 1.0
 
 
+def with_the_body(roots: np.ndarray) -> np.ndarray:
+    """Both input ankles (n, 2, 3) going along with the root, 10 cm to either side."""
+    return roots[:, None] + np.array([[10.0, -90.0, 0.0], [-10.0, -90.0, 0.0]])
+
+
 def held_out_walk():
     files = [f for f in D.files_for_style(D.list_files(DATA), "normal", "val") if f.action == "walk"]
     m = D.load_motions(files[:1])[0]
@@ -54,7 +59,7 @@ def held_out_walk():
 
 
 @needs_data
-@pytest.mark.parametrize("feet", ["input", "stance"])
+@pytest.mark.parametrize("feet", ["input", "stance", "path"])
 def test_at_a_slower_pace_a_walk_covers_less_ground_with_its_planted_feet_still(feet):
     from stylecast.models.data import bandai_skeleton
 
@@ -95,14 +100,15 @@ def test_the_pace_follows_the_share_of_the_restyle_shown():
     roots = np.stack([np.zeros(n), np.full(n, 100.0), 2.0 * np.arange(n)], axis=1)  # 2 cm a frame
     settings = replace(FEET["input"], pace=((2.0, 1.5),))
     weights = np.zeros((n, 2))
-    body, _ = Pace(settings).track(roots, weights, np.zeros(n))
+    ankles = with_the_body(roots)
+    body, _ = Pace(settings).track(roots, ankles, weights, np.zeros(n))
     assert np.abs(body).max() == 0.0
     mix = np.clip((np.arange(n) - 100) / 30.0, 0.0, 1.0)  # pass-through, then a 30-frame fade-in
-    body, feet = Pace(settings).track(roots, weights, mix)
+    body, feet = Pace(settings).track(roots, ankles, weights, mix)
     speed = 2.0 - np.diff(body[:, 1])  # the output's step
     assert speed[:100] == pytest.approx(2.0) and speed[-50:] == pytest.approx(1.5, abs=5e-3)
     assert np.abs(np.diff(speed, 2)).max() < 0.01  # no kink
-    # free feet follow the body (here never locked): they catch up with its shift
+    # free feet going with the body (here never locked) keep up with its shift
     np.testing.assert_allclose(feet[-1], np.tile(body[-1], (2, 1)), atol=0.05)
 
 
@@ -114,12 +120,16 @@ def test_a_stream_shown_restyled_from_its_first_frame_is_at_its_pace_from_its_fi
     roots = np.stack([np.zeros(n), np.full(n, 100.0), 6.0 * np.arange(n)], axis=1)  # 6 cm a frame: a run
     settings = replace(FEET["input"], pace=((2.0, 1.5), (6.0, 3.0)))  # 0.75 at a walk, 0.5 at a run
     weights = np.zeros((n, 2))
-    body, _ = Pace(settings).track(roots, weights, np.ones(n))
+    ankles = with_the_body(roots)
+    body, feet = Pace(settings).track(roots, ankles, weights, np.ones(n))
     stream = Pace(settings)
-    by_frame = [stream.track_one_frame(x, z, 0.0, 0.0, 1.0)[0] for x, _, z in roots.tolist()]
+    by_frame = [stream.track_one_frame(x, z, a[:, [0, 2]].tolist(), 0.0, 0.0, 1.0)
+                for (x, _, z), a in zip(roots.tolist(), ankles)]
+    np.testing.assert_allclose([f for _, f in by_frame], feet, atol=1e-12)
+    by_frame = [body for body, _ in by_frame]
     np.testing.assert_allclose(by_frame, body, atol=1e-12)
     np.testing.assert_allclose(6.0 - np.diff(body[:, 1]), 3.0, atol=1e-9)  # half of each step
-    faded, _ = Pace(settings).track(roots, weights, np.clip(np.arange(n) / 30.0, 0.0, 1.0))
+    faded, _ = Pace(settings).track(roots, ankles, weights, np.clip(np.arange(n) / 30.0, 0.0, 1.0))
     # a fade from pass-through starts at the share of the slowdown it shows on its first step
     assert 6.0 - faded[1, 1] == pytest.approx(6.0 * (1.0 - 0.5 / 30.0), abs=1e-9)
 
@@ -150,7 +160,7 @@ def test_a_root_that_jumps_back_resets_the_lag_and_the_feet_go_with_the_body():
     z = 2.0 * (np.arange(n) % 100)  # walks 2 cm a frame for 100 frames, then jumps back 198 cm
     roots = np.stack([np.zeros(n), np.full(n, 100.0), z], axis=1)
     pace = Pace(replace(FEET["input"], pace=((2.0, 1.5), (6.0, 3.0))))  # 0.75 at a walk, 0.5 fast
-    body, feet = pace.track(roots, np.zeros((n, 2)))
+    body, feet = pace.track(roots, with_the_body(roots), np.zeros((n, 2)))
     assert body[99, 1] > 10.0  # the lag built up over the first pass
     assert np.abs(body[100]).max() == 0.0 and np.abs(feet[100]).max() == 0.0  # reset at the jump
     # the second pass lags as the first ended, settling on 0.25 of each 2 cm step: the jump
@@ -158,3 +168,37 @@ def test_a_root_that_jumps_back_resets_the_lag_and_the_feet_go_with_the_body():
     before, after = np.diff(body[:100, 1]), np.diff(body[100:, 1])
     assert after[0] == pytest.approx(before[-1], abs=0.005) and np.all(np.diff(after) >= -1e-12)
     assert after[-1] == pytest.approx(0.5, abs=0.01)
+
+
+def test_a_foot_slows_in_step_with_its_own_swing_never_pulled_back():
+    """At a steady pace a foot's shift grows by the slowdown's share of the input foot's own
+    step: a lifting foot's speed keeps its one hump, scaled. The known-bad recurrence took
+    the BODY's step while the foot was free (before 2026-11-30): as the foot lifted slowly,
+    the body's step pulled it backwards, and its speed dipped mid-swing."""
+    n, swing = 200, 30
+    roots = np.stack([np.zeros(n), np.full(n, 100.0), 2.0 * np.arange(n)], axis=1)  # 2 cm a frame
+    settings = replace(FEET["input"], pace=((2.0, 1.5),))  # 0.75 of the input's pace
+    # a swing's speed, one hump: over a stance and a swing the foot goes as far as the body
+    hump = 8.0 * np.sin(np.pi * (np.arange(swing) + 0.5) / swing) ** 2
+    steps = np.tile(np.concatenate([np.zeros(swing), hump]), n // (2 * swing) + 1)[:n]  # plant, swing, ...
+    ankles = np.zeros((n, 2, 3))
+    ankles[:, :, 2] = np.cumsum(steps)[:, None]
+    weights = np.repeat((steps == 0.0)[:, None], 2, axis=1).astype(np.float64)  # locked while planted
+    body, feet = Pace(settings).track(roots, ankles, weights)
+    world = ankles[:, 0, 2] - feet[:, 0, 1]  # where the foot goes: the input's ankle less its shift
+    settled = slice(100, None)  # the pace's low-passes settled
+    speed = np.diff(world)[settled]
+    assert speed.min() >= 0.0  # never pulled back
+    free = (weights[1:, 0] == 0.0)[settled]
+    assert speed[free].max() == pytest.approx(0.75 * hump.max(), rel=0.1)  # the hump, scaled
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], free.astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):  # one hump per swing: no dip (metrics.swing_dips' test)
+        v = speed[a:b]
+        peak = int(np.argmax(v))
+        assert np.all(np.diff(v[:peak + 1]) >= -1e-9) and np.all(np.diff(v[peak:]) <= 1e-9)
+    # the old recurrence, the body's step while free: pulled back as the foot lifts
+    body_step = np.diff(body[:, 1], prepend=0.0)
+    old = np.zeros(n)
+    for t in range(1, n):
+        old[t] = old[t - 1] + (1.0 - weights[t, 0]) * (body_step[t] + 0.15 * (body[t - 1, 1] - old[t - 1]))
+    assert np.diff(ankles[:, 0, 2] - old)[settled][free].min() < 0.0

@@ -40,12 +40,19 @@ class Pace:
     new style, a new intensity or a fade never steps the body's speed.
 
     A foot cannot simply go with the body: a planted foot would slide back. Each foot has
-    its own shift: frozen while its lock holds it (the foot stays where it landed),
-    following the body's step while free and catching up with it at ``carry_rate`` a
-    frame, in between in proportion to the lock weight, so it moves smoothly through the
-    ramps. The foot lock puts a planted foot on the input's ankle less its shift, and a
-    free foot where the restyled leg puts it, moved by how far its shift lags the body's
-    (``_carry_free_feet``): shorter strides at the same cadence."""
+    its own shift, which grows by the slowdown's share of the input foot's OWN step (a
+    planted foot barely moves, so it stays where it landed; a swinging one covers the
+    slowed stride with the input's one-humped speed), and while it is free it also takes
+    back what it lags the body's shift, ``carry_rate`` of it per centimetre it steps (a
+    turn or a change of pace leaves some), in proportion to how free its lock is. Before
+    2026-11-30 a free foot went with the BODY's step and took the stance's lag back at 15 %
+    a frame: as a foot lifted, the body's step pulled it back faster than it swung forward,
+    and its speed slumped mid-swing (the multistyle model towards elderly: every held-out
+    swing dipped, 210 -> 40 -> 270 cm/s; ``metrics.swing_dips``). The foot lock puts a
+    planted foot on the input's ankle less its shift, and a free foot where the restyled
+    leg puts it, moved by how far its shift lags the body's (``_carry_free_feet``), or on
+    the input's own path less its shift (``ContactSettings.swing_path``): shorter strides
+    at the same cadence."""
 
     def __init__(self, settings: ContactSettings):
         self.set_points(settings.pace)
@@ -53,6 +60,7 @@ class Pace:
         self._speed = TriplePole(settings.pace_tau)
         self._slowdown = TriplePole(settings.pace_tau)
         self._previous: tuple | None = None  # the last input root's (x, z)
+        self._previous_ankles: list | None = None  # ...and the input's ankles' [[x, z], [x, z]]
         self._shift = [0.0, 0.0]  # the body's, x and z (cm)
         self._feet = [[0.0, 0.0], [0.0, 0.0]]  # each foot's
         self._moving = False  # any shift so far (a stream that never slowed skips the work)
@@ -83,41 +91,49 @@ class Pace:
             ratio = (ys[k - 1] + (ys[k] - ys[k - 1]) * (speed - xs[k - 1]) / (xs[k] - xs[k - 1])) / speed
         return min(ratio, MAX_PACE_RATIO)
 
-    def track(self, roots: np.ndarray, weights: np.ndarray, mix: np.ndarray | None = None):
-        """The next frames in order: input roots (n, 3), the lock weights (n, 2) and the share
-        of the restyle shown (n,) (None: all of it) -> the body's shift (n, 2: x, z) and each
-        foot's (n, 2, 2), to take off the input's travel; None while there is none. A
-        recurrence on Python floats (``track_one_frame`` is the daemon's frame)."""
+    def track(self, roots: np.ndarray, ankles: np.ndarray, weights: np.ndarray, mix: np.ndarray | None = None):
+        """The next frames in order: input roots (n, 3), the input's ankles (n, 2, 3), the lock
+        weights (n, 2) and the share of the restyle shown (n,) (None: all of it) -> the
+        body's shift (n, 2: x, z) and each foot's (n, 2, 2), to take off the input's travel;
+        None while there is none. A recurrence on Python floats (``track_one_frame`` is the
+        daemon's frame)."""
+        feet_xz = np.asarray(ankles)[:, :, [0, 2]]
         if not (self.on or self._moving):
             self._previous = tuple(np.asarray(roots)[-1, [0, 2]].tolist())
+            self._previous_ankles = feet_xz[-1].tolist()
             return None
         self._moving = True
         n = len(roots)
         mix = [1.0] * n if mix is None else np.broadcast_to(mix, (n,)).tolist()
         body, feet = np.empty((n, 2)), np.empty((n, 2, 2))
-        for i, ((x, _, z), (left, right), shown) in enumerate(zip(roots.tolist(), weights.tolist(), mix)):
-            body[i], feet[i] = self._step(x, z, left, right, shown)
+        for i, ((x, _, z), ankle_xz, (left, right), shown) in enumerate(
+                zip(roots.tolist(), feet_xz.tolist(), weights.tolist(), mix)):
+            body[i], feet[i] = self._step(x, z, ankle_xz, left, right, shown)
         return body, feet
 
-    def track_one_frame(self, x: float, z: float, left: float, right: float, shown: float):
+    def track_one_frame(self, x: float, z: float, ankles_xz: list, left: float, right: float, shown: float):
         """``track`` of one frame on Python floats (the daemon's case): the input root's x and
-        z, the two lock weights and the share shown -> the body's shift [x, z] and each
-        foot's [[x, z], [x, z]] (new lists), or None while there is none."""
+        z, the input's ankles' [[x, z], [x, z]], the two lock weights and the share shown ->
+        the body's shift [x, z] and each foot's [[x, z], [x, z]] (new lists), or None while
+        there is none."""
         if not (self.on or self._moving):
-            self._previous = (x, z)
+            self._previous, self._previous_ankles = (x, z), ankles_xz
             return None
         self._moving = True
-        return self._step(x, z, left, right, shown)
+        return self._step(x, z, ankles_xz, left, right, shown)
 
-    def _step(self, x: float, z: float, left: float, right: float, shown: float) -> tuple[list, list]:
+    def _step(self, x: float, z: float, ankles_xz: list, left: float, right: float,
+              shown: float) -> tuple[list, list]:
         """One frame of the recurrence (see ``track``); the new shifts, as new lists."""
         (sx, sz), rate = self._shift, self.rate
         first_step = self._first_step and self._previous is not None
         px, pz = (x, z) if self._previous is None else self._previous
-        self._previous = (x, z)
+        before = ankles_xz if self._previous_ankles is None else self._previous_ankles
+        self._previous, self._previous_ankles = (x, z), ankles_xz
         dx, dz = x - px, z - pz
         step = math.hypot(dx, dz)
         feet = self._feet
+        foot_steps = [(ax - bx, az - bz) for (ax, az), (bx, bz) in zip(ankles_xz, before)]
         if step > TELEPORT_STEP:
             # A looped clip or a tracker glitch: the avatar goes with its performer and
             # the lag starts again from nothing (the step would otherwise be scaled and
@@ -125,6 +141,7 @@ class Pace:
             sx = sz = 0.0
             feet = [[0.0, 0.0], [0.0, 0.0]]
             dx = dz = 0.0
+            foot_steps = [(0.0, 0.0), (0.0, 0.0)]
             step = self._last_step
         self._last_step = step
         if first_step:
@@ -139,8 +156,9 @@ class Pace:
             self._slowdown.settle_on(shown * (1.0 - self.ratio(step)))
         speed = self._speed.step(step)
         slow = self._slowdown.step(shown * (1.0 - self.ratio(speed)))
-        step_x, step_z = slow * dx, slow * dz
-        self._feet = [[fx + (1.0 - w) * (step_x + rate * (sx - fx)), fz + (1.0 - w) * (step_z + rate * (sz - fz))]
-                      for (fx, fz), w in zip(feet, (left, right))]
-        self._shift = [sx + step_x, sz + step_z]
+        self._feet = [[fx + slow * fdx + catch * (sx - fx), fz + slow * fdz + catch * (sz - fz)]
+                      for (fx, fz), (fdx, fdz), catch in
+                      ((foot, foot_step, (1.0 - w) * min(rate * math.hypot(*foot_step), 1.0))
+                       for foot, foot_step, w in zip(feet, foot_steps, (left, right)))]
+        self._shift = [sx + slow * dx, sz + slow * dz]
         return self._shift, self._feet

@@ -79,6 +79,7 @@ def solve_lock_jobs(jobs: list[LockJob]) -> None:
     rows = _Rows(jobs)
     _advance(rows)
     _carry_free_feet(rows)
+    _follow_input_path(rows)
     for with_stance in (False, True):  # the two kinds of target: one pass each
         _lock_planted(rows, np.flatnonzero((rows.weights.max(axis=1) > 0) & (rows.with_stance == with_stance)))
     _keep_above_floor(rows)
@@ -106,6 +107,7 @@ class _Rows:
             np.repeat(np.stack([j.lock.offsets for j in jobs]), sizes, axis=0)
         self.ankle_rest = np.repeat([j.lock.ankle_rest for j in jobs], sizes)
         self.with_stance = np.repeat([j.lock.stance.cap > 0 for j in jobs], sizes)
+        self.on_path = np.repeat([j.lock.settings.swing_path for j in jobs], sizes)  # ``swing_path``
         self.result = self.outputs.copy()  # the caller's outputs stay as they are
         self.new_roots = self.own = self.stance = None  # set by ``_advance``
         self.feet_shift = np.zeros((len(self.roots), 2, 2))  # ``Pace``: each foot's (x, z) ...
@@ -142,7 +144,7 @@ def _advance(rows: _Rows) -> None:
                                    (restyled[0][lo:hi], restyled[1][lo:hi]), job.weights, job.mix)
         if stance is not None:
             rows.stance[lo:hi] = stance
-        pace = lock.pace.track(job.roots, job.weights, job.mix)
+        pace = lock.pace.track(job.roots, own[0][lo:hi], job.weights, job.mix)
         if pace is not None:
             body, feet = pace
             rows.new_roots[lo:hi, 0] -= body[:, 0]
@@ -165,6 +167,7 @@ def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray) -> No
     jobs = rows.jobs
     gaps, down = np.where(rows.down, gap, 0.0).tolist(), rows.down.tolist()
     xz, weights = rows.roots[:, [0, 2]].tolist(), rows.weights.tolist()
+    ankles_xz = rows.own[0][:, :, [0, 2]].tolist()
     shown = [1.0 if job.mix is None else float(job.mix[0]) for job in jobs]
     at = [i for i, job in enumerate(jobs) if job.lock.stance.cap > 0]  # the rows with a stance (--feet stance)
     if at:
@@ -180,7 +183,7 @@ def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray) -> No
     for i, job in enumerate(jobs):
         lock = job.lock
         drops.append(lock.pelvis.drop_of_one_frame(gaps[i], down[i]))
-        shift = lock.pace.track_one_frame(*xz[i], *weights[i], shown[i])
+        shift = lock.pace.track_one_frame(*xz[i], ankles_xz[i], *weights[i], shown[i])
         if shift is not None:
             paced.append(i)
             body.append(shift[0])
@@ -198,9 +201,10 @@ def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray) -> No
 def _carry_free_feet(rows: _Rows) -> None:
     """``Pace``: a foot not fully locked goes where its (restyled) leg puts it, moved by how
     far its own shift lags the body's (the leg IK, the foot keeping its world rotation), in
-    by the carry needed over CARRY_EASE, as the floor step eases its lift."""
+    by the carry needed over CARRY_EASE, as the floor step eases its lift. (Not on the
+    input's path, ``_follow_input_path``.)"""
     size = np.linalg.norm(rows.carry, axis=-1)  # (rows, 2)
-    need = (rows.weights < 1.0) & (size > 0.0)
+    need = (rows.weights < 1.0) & (size > 0.0) & ~rows.on_path[:, None]
     at = np.flatnonzero(need.any(axis=1))
     if not len(at):
         return
@@ -213,6 +217,27 @@ def _carry_free_feet(rows: _Rows) -> None:
     legs = LEG_INDEX[:, :3]
     eased = np.where(need[at], np.clip(size[at] / CARRY_EASE, 0.0, 1.0), 0.0)
     weight = np.broadcast_to(eased[:, :, None], solved.shape[:-1])
+    rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
+
+
+def _follow_input_path(rows: _Rows) -> None:
+    """``ContactSettings.swing_path``: a foot not fully locked goes along the input's own
+    ankle path, less its ``Pace`` shift and lowered as far as the hips were (the pelvis
+    height), by the leg IK: the knee bends the way the restyled one points and the foot
+    keeps its restyled world rotation. The lock then blends it onto the input's ankle by
+    its weight (``_lock_planted``), as for any other foot."""
+    need = (rows.weights < 1.0) & rows.on_path[:, None]
+    at = np.flatnonzero(need.any(axis=1))
+    if not len(at):
+        return
+    roots, outputs, offsets = rows.new_roots[at], rows.result[at], rows.offsets_of(at)
+    chain = leg_chain(roots, outputs, offsets)
+    target = rows.own[0][at].copy()  # the input's ankles
+    target[..., [0, 2]] -= rows.feet_shift[at]
+    target[..., 1] += (rows.new_roots[at, 1] - rows.roots[at, 1])[:, None]
+    solved = solve_legs(roots, outputs, offsets, target, chain[1][:, :, 2], chain)
+    legs = LEG_INDEX[:, :3]
+    weight = np.broadcast_to(need[at][:, :, None].astype(np.float64), solved.shape[:-1])
     rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
 
 
