@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import (AUTO_FEET, FEET, LEGS, ContactSettings, FootLock, StanceOffset, feet_for,
-                                       leg_chain, solve_lock_jobs)
+from stylecast.motion.footlock import (AUTO_FEET, FEET, LEGS, FootLock, StanceOffset, feet_for, leg_chain,
+                                       solve_lock_jobs)
 from stylecast.motion.footlock.contacts import lock_kernel
 from stylecast.motion.humanoid import HUMANOID_BONES
 from stylecast.motion.smoothing import CorrectionFilter
