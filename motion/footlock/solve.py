@@ -40,9 +40,15 @@ CLEARANCE_BAND = 5.0
 # cm a foot near the floor may go below the input's own (the soft edge's width is
 # FLOOR_MARGIN: within half of it the clearance meets the input's with a smooth corner)
 CLEARANCE_SLACK = 0.5
-# cm a free foot's ``Pace`` carry must reach before its leg is fully moved by it
-# (``_carry_free_feet``), for FLOOR_LIFT_EASE's reason
+# cm a free foot's ``Pace`` carry (or its way to the input's path) must reach before its
+# leg is fully moved by it (``_carry_free_feet``, ``_follow_input_path``), for
+# FLOOR_LIFT_EASE's reason
 CARRY_EASE = 0.5
+# cm within which a free foot counts as on the input's path already (``_follow_input_path``):
+# the IK makes a knee an exact hinge and eases a straight one, so even its smallest share
+# moved a leg the restyle had left alone (a style served as performed: 1e-5 where it
+# passes through to 5e-8).
+PATH_AT = 0.01
 
 
 @dataclass(eq=False)
@@ -224,8 +230,9 @@ def _follow_input_path(rows: _Rows) -> None:
     """``ContactSettings.swing_path``: a foot not fully locked goes along the input's own
     ankle path, less its ``Pace`` shift and lowered as far as the hips were (the pelvis
     height), by the leg IK: the knee bends the way the restyled one points and the foot
-    keeps its restyled world rotation. The lock then blends it onto the input's ankle by
-    its weight (``_lock_planted``), as for any other foot."""
+    keeps its restyled world rotation; in by the distance to go beyond PATH_AT over
+    CARRY_EASE, so that a leg already there is left as it is. The lock then blends it onto
+    the input's ankle by its weight (``_lock_planted``), as for any other foot."""
     need = (rows.weights < 1.0) & rows.on_path[:, None]
     at = np.flatnonzero(need.any(axis=1))
     if not len(at):
@@ -237,7 +244,9 @@ def _follow_input_path(rows: _Rows) -> None:
     target[..., 1] += (rows.new_roots[at, 1] - rows.roots[at, 1])[:, None]
     solved = solve_legs(roots, outputs, offsets, target, chain[1][:, :, 2], chain)
     legs = LEG_INDEX[:, :3]
-    weight = np.broadcast_to(need[at][:, :, None].astype(np.float64), solved.shape[:-1])
+    to_go = np.linalg.norm(target - chain[0][:, :, 2], axis=-1)
+    eased = np.where(need[at], np.clip((to_go - PATH_AT) / CARRY_EASE, 0.0, 1.0), 0.0)
+    weight = np.broadcast_to(eased[:, :, None], solved.shape[:-1])
     rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
 
 
