@@ -193,11 +193,12 @@ def skate_samples(positions: np.ndarray) -> np.ndarray:
 # top (a wobble at a swing's slow ends is not one). Real walks have none: 0 of 777 held-out
 # swings of walks and turning walks over all seven styles; real runs 0-99 % by style (a
 # heel kicked up behind: active 99 %, elderly none), so the figure is read against real
-# takes of the style and the action. The foot lock makes one in every swing of the
-# multistyle model's held-out walks made elderly: its input lock lets a lifting foot go
+# takes of the style and the action. The foot lock made one in every swing of the
+# multistyle model's held-out walks made elderly: its input lock let a lifting foot go
 # over 4 frames, crossing the gap to the restyled swing in those frames, and the pace's
-# lag is taken back at 15 % a frame as it lifts (a slump to 40 of the input's 210 cm/s;
-# MODEL_CARD.md, "Swings that dip"). No other measure here flagged it.
+# lag was taken back at 15 % a frame as it lifted (a slump to 40 of the input's 210 cm/s;
+# MODEL_CARD.md, "Swings that dip"; since "Swings on the input's path", 3 %). No other
+# measure here flagged it.
 SWING_FRAMES = 8
 DIP_DEPTH = 0.75
 DIP_PEAK = 0.3

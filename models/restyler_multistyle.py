@@ -39,7 +39,7 @@ class MultiStyleRestyler(Restyler):
     # exhausted 69.1 -> 77.1 % (88.7 -> 89.5 %), where feminine fell 78 -> 2 % and masculine
     # 69 -> 24 % (the model card, "The style's pace"); and swings its feet on the input's
     # path (``ContactSettings.swing_path``): elderly 56.4 -> 61.5 %, exhausted 92.9 -> 95.5 %
-    # on the worst judge, their swings dipping in 7 and 10 % rather than 100 and 96 % (the
+    # on the worst judge, their swings dipping in 3 and 7 % rather than 100 and 96 % (the
     # model card, "Swings on the input's path"). Read when a lock is built: a session keeps
     # its lock when its style changes live.
     feet_of_style = {"elderly": "path", "exhausted": "path"}

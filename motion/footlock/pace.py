@@ -1,7 +1,8 @@
 """Pace (``Pace``, ``--pace style``, the default): styles cover ground at their own speed,
 and the judges see it (an exhausted run is slower). The root's horizontal steps are
-scaled to the target style's pace; each foot carries its own share of the lag, frozen while
-it is planted and caught up while it swings, so strides shorten and no planted foot slides.
+scaled to the target style's pace; each foot carries its own share of the lag, growing with
+its own steps (so a planted foot stays put) and taken back while it swings, so strides
+shorten and no planted foot slides.
 """
 
 from __future__ import annotations

@@ -112,7 +112,7 @@ class ContactSettings:
     # foot). On the input's path a swing keeps the performer's one-humped speed: the
     # restyled swing of the multistyle model towards elderly and exhausted rose high and
     # late, and the input lock's 4-frame release crossed the gap to it (100 % and 96 % of
-    # held-out swings dipped mid-swing, 7 % and 10 % on the input's path, and both read more
+    # held-out swings dipped mid-swing, 3 % and 7 % on the input's path, and both read more
     # as the style: the model card, "Swings on the input's path"). The pair model's own swing
     # is what reads exhausted (walks 93 -> 52 % on the worst judge on the input's path).
     swing_path: bool = False
