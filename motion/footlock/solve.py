@@ -214,16 +214,10 @@ def _carry_free_feet(rows: _Rows) -> None:
     at = np.flatnonzero(need.any(axis=1))
     if not len(at):
         return
-    roots, outputs, offsets = rows.new_roots[at], rows.result[at], rows.offsets_of(at)
-    chain = leg_chain(roots, outputs, offsets)
-    pos, world, _ = chain
-    target = pos[:, :, 2].copy()
+    chain = leg_chain(rows.new_roots[at], rows.result[at], rows.offsets_of(at))
+    target = chain[0][:, :, 2].copy()
     target[..., [0, 2]] += rows.carry[at]
-    solved = solve_legs(roots, outputs, offsets, target, world[:, :, 2], chain)
-    legs = LEG_INDEX[:, :3]
-    eased = np.where(need[at], np.clip(size[at] / CARRY_EASE, 0.0, 1.0), 0.0)
-    weight = np.broadcast_to(eased[:, :, None], solved.shape[:-1])
-    rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
+    _ease_free_legs(rows, at, chain, target, np.where(need[at], np.clip(size[at] / CARRY_EASE, 0.0, 1.0), 0.0))
 
 
 def _follow_input_path(rows: _Rows) -> None:
@@ -237,15 +231,21 @@ def _follow_input_path(rows: _Rows) -> None:
     at = np.flatnonzero(need.any(axis=1))
     if not len(at):
         return
-    roots, outputs, offsets = rows.new_roots[at], rows.result[at], rows.offsets_of(at)
-    chain = leg_chain(roots, outputs, offsets)
+    chain = leg_chain(rows.new_roots[at], rows.result[at], rows.offsets_of(at))
     target = rows.own[0][at].copy()  # the input's ankles
     target[..., [0, 2]] -= rows.feet_shift[at]
     target[..., 1] += (rows.new_roots[at, 1] - rows.roots[at, 1])[:, None]
-    solved = solve_legs(roots, outputs, offsets, target, chain[1][:, :, 2], chain)
-    legs = LEG_INDEX[:, :3]
     to_go = np.linalg.norm(target - chain[0][:, :, 2], axis=-1)
-    eased = np.where(need[at], np.clip((to_go - PATH_AT) / CARRY_EASE, 0.0, 1.0), 0.0)
+    _ease_free_legs(rows, at, chain, target, np.where(need[at], np.clip((to_go - PATH_AT) / CARRY_EASE, 0.0, 1.0), 0.0))
+
+
+def _ease_free_legs(rows: _Rows, at: np.ndarray, chain: tuple, target: np.ndarray, eased: np.ndarray) -> None:
+    """Rows ``at``: each leg by the leg IK onto its ankle ``target`` (rows, 2, 3), the knee
+    bent the way the restyled one points and the foot keeping its world rotation (``chain``:
+    ``leg_chain`` of the rows as they are), slerped in by ``eased`` (rows, 2)."""
+    outputs = rows.result[at]
+    solved = solve_legs(rows.new_roots[at], outputs, rows.offsets_of(at), target, chain[1][:, :, 2], chain)
+    legs = LEG_INDEX[:, :3]
     weight = np.broadcast_to(eased[:, :, None], solved.shape[:-1])
     rows.result[at[:, None, None], legs[None]] = rot.slerp(outputs[:, legs], solved, weight)
 
