@@ -325,9 +325,11 @@ def bench_footlock(model, motion, runs=5, performers=16):
 
     rows = []
     # the stance's offset settling through the blend-in (``stance_settle``) against the frozen
-    # offset it replaced, the baseline in the same run; and the stance with the quick hips a
-    # style asks for (``pelvis_quick_share``: masculine's), two more low-passes a frame
+    # offset it replaced, the baseline in the same run; the stance with the quick hips a
+    # style asks for (``pelvis_quick_share``: masculine's), two more low-passes a frame; and
+    # the feet in the air on the input's path (``swing_path``: an IK for each free leg)
     for feet, overrides, label in (("input", {}, "input"),
+                                   ("path", {}, "path (elderly and exhausted)"),
                                    ("stance", {"stance_settle": False}, "stance, frozen (before)"),
                                    ("stance", {}, "stance"),
                                    ("stance", {"pelvis_quick_share": 1.0}, "stance, quick hips (masculine)")):
