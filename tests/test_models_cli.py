@@ -70,7 +70,7 @@ def test_a_checkpoint_names_the_foot_lock_it_is_served_with(tiny_run, tmp_path, 
     glued = str(tmp_path / "glued.safetensors")
     assert main(["restyle", str(CLIP), "-o", str(tmp_path / "x.bvh"), "--model", glued]) == 2
     err = capsys.readouterr().err
-    assert "names the foot lock 'glued', which this stylecast does not know (input, stance)" in err
+    assert "names the foot lock 'glued', which this stylecast does not know (input, stance, path)" in err
     assert err.count("\n") == 1
 
 
