@@ -140,7 +140,7 @@ OTHER_STANCE = replace(STANCE, stance_cap=3.0, stance_rate=0.03, turn_cap=10.0, 
 def test_performers_solved_in_one_call_equal_each_solved_alone():
     """The daemon solves every performer's frame of a tick in one vectorised call, each
     with its own proportions and lock; each must come out as it does alone (to rounding:
-    one lock alone takes its feet on Python floats). Five
+    one lock alone takes its feet on Python floats). Six
     performers: three body sizes, all three locks (two stances of different settings), two
     gliding off (the floor step, not the lock) at a slower pace."""
     roots, q = stepping(200)
