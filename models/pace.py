@@ -48,14 +48,21 @@ def pace_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, 
 
 def measure_paces(files, cache_dir=None) -> dict[str, tuple[float, float]]:
     """``PACES`` from the dataset's training split: {style: (walks, runs)} in cm/s."""
-    from . import data as D
     from .metrics import travel_speed
+
+    return per_style_locomotion(files, lambda m: OUTPUT_FPS * travel_speed(m.root_positions), cache_dir)
+
+
+def per_style_locomotion(files, read, cache_dir=None) -> dict[str, tuple[float, float]]:
+    """{style: (walks, runs)}: ``read`` (a motion -> one figure) averaged over each style's
+    training takes of each walking action and of runs, the walking actions' means averaged
+    (the held-out files stay unseen); ``PACES`` and ``arm_swing.ARM_SWINGS`` are read so."""
+    from . import data as D
 
     out = {}
     for style in D.styles_present(files):
         motions = D.load_motions([f for f in D.files_for_style(files, style, "train") if f.action in WALKS + RUNS],
                                  cache_dir)
-        speed = {a: OUTPUT_FPS * float(np.mean([travel_speed(m.root_positions) for m in motions
-                                                 if m.file.action == a])) for a in WALKS + RUNS}
-        out[style] = (float(np.mean([speed[a] for a in WALKS])), float(np.mean([speed[a] for a in RUNS])))
+        mean = {a: float(np.mean([read(m) for m in motions if m.file.action == a])) for a in WALKS + RUNS}
+        out[style] = (float(np.mean([mean[a] for a in WALKS])), float(np.mean([mean[a] for a in RUNS])))
     return out

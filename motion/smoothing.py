@@ -79,13 +79,13 @@ def filter_frames(filters: list[CorrectionFilter], inputs: np.ndarray, outputs: 
     for f, first in zip(filters, correction[0]):
         f._settle_on(first)
     state = np.stack([f._state for f in filters], axis=1)  # (3, P, J*3)
-    smooth, state = _one_step(filters[0]._b, filters[0]._a, correction[0], state)
+    smooth, state = lfilter_one_step(filters[0]._b, filters[0]._a, correction[0], state)
     for k, f in enumerate(filters):
         f._state = state[:, k]
     return rot.multiply(rot.exp_map(smooth.reshape(p, joints, 3)), inputs)
 
 
-def _one_step(b: np.ndarray, a: np.ndarray, x: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def lfilter_one_step(b: np.ndarray, a: np.ndarray, x: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``lfilter(b, a, x[None], axis=0, zi=state)`` for the one sample the daemon's tick
     has, written out (transposed direct form II, lfilter's own; ``b`` has one coefficient).
     Hand-written because measured: lfilter loops over the channels in C, one filter each,
