@@ -91,6 +91,13 @@ class MultiStyleRestyler(Restyler):
 
         return pace_points(self.performer_style, self._mix_of(weights))
 
+    def arm_swing(self, weights=None) -> tuple:
+        """The arm swing of the mix ``weights`` against the performer's style's, as ``pace``
+        (``arm_swing.arm_swing_points``)."""
+        from .arm_swing import arm_swing_points
+
+        return arm_swing_points(self.performer_style, self._mix_of(weights))
+
     def quick_hips(self, weights=None) -> float:
         """The share of the hips' low-pass at the quick time constant for the mix ``weights``
         (default this restyler's): each style's ``quick_hips_of_style`` by its weight."""

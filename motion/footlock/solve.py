@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import rotations as rot
+from .arms import swing_frames
 from .legs import LEG_INDEX, leg_chain, solve_legs
 from .stance import stance_targets
 
@@ -78,11 +79,12 @@ def solve_lock_jobs(jobs: list[LockJob]) -> None:
     """Many locks' jobs (the daemon: every performer's frame of this tick) in one vectorised
     pass, each frame with its own performer's proportions: the pelvis height and stance
     (each lock's state advanced in order), the lock of planted feet, then the floor (see
-    the module docstring). Run per lock, numpy's per-call cost was 55x the work
+    the module docstring); the arms' swing beside them (``ArmSwing``). Run per lock, numpy's per-call cost was 55x the work
     (``bench_daemon.py footlock``). Each job is solved once, in the order of its frames."""
     if not jobs:
         return
     rows = _Rows(jobs)
+    _swing_arms(rows)
     _advance(rows)
     _carry_free_feet(rows)
     _follow_input_path(rows)
@@ -121,6 +123,20 @@ class _Rows:
 
     def offsets_of(self, rows: np.ndarray) -> np.ndarray:
         return self.offsets if self.offsets.ndim == 2 else self.offsets[rows]
+
+
+def _swing_arms(rows: _Rows) -> None:
+    """Each lock's ``ArmSwing`` on its rows' arms (``result``; the legs read ``outputs``):
+    one vectorised pass where every lock has one frame (the daemon's tick)."""
+    jobs = rows.jobs
+    if len(jobs) > 1 and len(rows.roots) == len(jobs):
+        shown = [1.0 if job.mix is None else float(job.mix[0]) for job in jobs]
+        swing_frames([job.lock.arms for job in jobs], rows.roots, rows.inputs, rows.result, shown)
+        return
+    for job, (lo, hi) in zip(jobs, rows.spans):
+        swung = job.lock.arms.apply(job.roots, job.inputs, rows.result[lo:hi], job.mix)
+        if swung is not None:
+            rows.result[lo:hi] = swung
 
 
 def _advance(rows: _Rows) -> None:
