@@ -291,6 +291,12 @@ def arm_swing(yaw: np.ndarray, positions: np.ndarray) -> float:
                           for hand in ("LeftHand", "RightHand")]))
 
 
+def hips_bob(positions: np.ndarray) -> float:
+    """cm: the hips' rise and fall, the standard deviation of their height about its running
+    mean (the table of ``gait_amplitude.HIPS_BOBS``; not one of ``GAIT_STATISTICS``)."""
+    return float(_about_running_mean(np.asarray(positions, np.float64)[:, 0, 1]).std())
+
+
 class GaitStatistic(NamedTuple):
     """``read``: (the hips' facing (T,) from ``hips_yaw``, positions (T, J, 3)) -> one
     figure per take.

@@ -108,13 +108,13 @@ class Restyler:
 
         return pace_points(self.source_style, {self.target_style: 1.0})
 
-    def arm_swing(self, weights=None) -> tuple:
-        """How far the stream's arms swing against the performer's (``footlock.ArmSwing``):
-        the target style's against the source's (``arm_swing.arm_swing_points``); ``weights``
-        as ``pace``'s."""
-        from .arm_swing import arm_swing_points
+    def amplitudes(self, weights=None) -> dict:
+        """How far the stream's arms swing and hips rise and fall against the performer's
+        (``footlock.GaitAmplitude``): the target style's against the source's
+        (``gait_amplitude.amplitudes``); ``weights`` as ``pace``'s."""
+        from .gait_amplitude import amplitudes
 
-        return arm_swing_points(self.source_style, {self.target_style: 1.0})
+        return amplitudes(self.source_style, {self.target_style: 1.0})
 
     @property
     def styles(self) -> dict:

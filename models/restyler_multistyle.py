@@ -91,12 +91,12 @@ class MultiStyleRestyler(Restyler):
 
         return pace_points(self.performer_style, self._mix_of(weights))
 
-    def arm_swing(self, weights=None) -> tuple:
-        """The arm swing of the mix ``weights`` against the performer's style's, as ``pace``
-        (``arm_swing.arm_swing_points``)."""
-        from .arm_swing import arm_swing_points
+    def amplitudes(self, weights=None) -> dict:
+        """The arm swing and hip bob of the mix ``weights`` against the performer's style's,
+        as ``pace`` (``gait_amplitude.amplitudes``)."""
+        from .gait_amplitude import amplitudes
 
-        return arm_swing_points(self.performer_style, self._mix_of(weights))
+        return amplitudes(self.performer_style, self._mix_of(weights))
 
     def quick_hips(self, weights=None) -> float:
         """The share of the hips' low-pass at the quick time constant for the mix ``weights``

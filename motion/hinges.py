@@ -80,6 +80,7 @@ class _Table(NamedTuple):
 
 
 _TABLE = _Table.of(HINGES)
+_ELBOWS = _Table.of(HINGES[:2])
 
 # Where a restyle straightens a hinge more than its input, the flexion below which it is
 # eased towards straight (``eased_bend``): the smaller of EASE_SHARE of the input's own bend
@@ -131,5 +132,29 @@ def keep_hinges(inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
     # The sideways bend the input's, the flexion the restyle's (not past straight).
     swing = swing_in * (1.0 - table.flexion) + (table.bent * bend)[..., None] * table.flexion
     q = rot.multiply(rot.exp_map(swing), np.where(table.twists, twist_out, twist_in))
+    out[..., table.joints, :] = np.where(np.sum(q * before, axis=-1, keepdims=True) < 0, -q, q)
+    return out
+
+
+def elbow_flexion(rotations: np.ndarray) -> np.ndarray:
+    """Humanoid rotations (..., J, 4) -> each elbow's flexion (..., 2), radians, bent positive
+    (left, right: ``HINGES``' order)."""
+    table = _ELBOWS
+    swing, _ = _swing_twist(np.asarray(rotations, np.float64)[..., table.joints, :], table.axis)
+    return table.bent * np.sum(swing * table.flexion, axis=-1)
+
+
+def add_elbow_flexion(inputs: np.ndarray, outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
+    """The outputs (..., J, 4) with ``added`` (..., 2) radians more flexion at each elbow (the
+    gait amplitude's arm swing, ``footlock.GaitAmplitude``), the rest of each elbow as it was:
+    a hinge stays a hinge, and the flexion is eased at straight as ``keep_hinges`` eases it
+    against the ``inputs``' own."""
+    table = _ELBOWS
+    out = np.array(outputs, dtype=np.float64)
+    before = out[..., table.joints, :]
+    swing, twist = _swing_twist(before, table.axis)
+    bend = eased_bend(elbow_flexion(inputs), table.bent * np.sum(swing * table.flexion, axis=-1) + added)
+    swing = swing * (1.0 - table.flexion) + (table.bent * bend)[..., None] * table.flexion
+    q = rot.multiply(rot.exp_map(swing), twist)
     out[..., table.joints, :] = np.where(np.sum(q * before, axis=-1, keepdims=True) < 0, -q, q)
     return out

@@ -20,7 +20,7 @@ from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler
-from stylecast.models.arm_swing import arm_swing_points
+from stylecast.models.gait_amplitude import amplitudes
 from stylecast.models.pace import pace_points
 from stylecast.models.styles import STYLES, one_hot, parse_mix
 from stylecast.models.train_multistyle import train_multistyle
@@ -160,7 +160,7 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # --feet auto: a multistyle model's sessions keep the restyled stance (motion.footlock.FEET),
         # at the pace of the style they are given (--pace style)
         assert all(s.feet.settings == replace(FEET["stance"], pace=pace_points("normal", {"youthful": 1.0}),
-                                              arm_swing=arm_swing_points("normal", {"youthful": 1.0}))
+                                              **amplitudes("normal", {"youthful": 1.0}))
                    for s in daemon.sessions)
         accepted = daemon.control.counts["accepted"]
         client.sendto(osc("/stylecast/style", "elderly", "alice"), ("127.0.0.1", port))
@@ -196,9 +196,10 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # mix's weights): bob's mix is half masculine (all quick) and half active (half quick);
         # elderly asks for none
         assert [s.feet.pelvis.quick_share for s in daemon.sessions] == [0.0, 0.75]
-        # ...and its arms swing as its own style's (models/arm_swing.py): alice's walks half as far
-        assert [s.feet.arms.gain(walk) for s in daemon.sessions] == pytest.approx(
-            [7.09 / 13.84, (16.25 + 13.90) / 2 / 13.84])
+        # ...and its arms swing and hips bob as its own style's (models/gait_amplitude.py):
+        # alice's walks half as far, bob's half active's and half masculine's
+        assert [s.feet.amplitude.gains(walk) for s in daemon.sessions] == pytest.approx(
+            [(7.09 / 13.84, 0.69 / 1.28), ((16.25 + 13.90) / 2 / 13.84, (2.77 + 2.41) / 2 / 1.28)])
         assert any("unknown style 'sleepy'" in r.getMessage() and "youthful" in r.getMessage() for r in caplog.records)
         # The delivered words are the model's own answer for each row's mix.
         word = np.stack([walk_clip(60).rotations])

@@ -15,7 +15,7 @@ import torch
 
 from stylecast.cli import main
 from stylecast.models import checkpoint as ckpt
-from stylecast.models.arm_swing import arm_swing_points
+from stylecast.models.gait_amplitude import amplitudes
 from stylecast.models.multistyle import MultiStyleConfig, StyleDiscriminator, make_generator
 from stylecast.models.networks import to_channels
 from stylecast.models.representation import get_representation
@@ -315,13 +315,13 @@ def test_a_trained_checkpoint_loads_as_the_multistyle_kind(tmp_path):
     assert r.with_style("elderly").feet == "path" and r.with_style("exhausted:0.6,feminine:0.4").feet == "path"
     assert r.with_style("exhausted:0.4,feminine:0.6").feet == "stance"
     elderly = r.with_style("elderly")
-    assert feet_for("auto", elderly, "input") == replace(FEET["path"], arm_swing=elderly.arm_swing())
-    assert elderly.arm_swing() == arm_swing_points("normal", {"elderly": 1.0})  # the arms swing as elderly
+    assert feet_for("auto", elderly, "input") == replace(FEET["path"], **elderly.amplitudes())
+    assert elderly.amplitudes() == amplitudes("normal", {"elderly": 1.0})  # the arms swing, the hips bob as elderly
     # ...and the hips a style asks for (quick_hips_of_style): masculine's follow within 2
     # frames, youthful's within the stance's 8, a mix's by its weights
     assert feet_for("auto", r.with_style("masculine")).pelvis_quick_share == 1.0
     youthful = r.with_style("youthful")
-    assert feet_for("auto", youthful) == replace(FEET["stance"], pace=youthful.pace(), arm_swing=youthful.arm_swing())
+    assert feet_for("auto", youthful) == replace(FEET["stance"], pace=youthful.pace(), **youthful.amplitudes())
     assert r.with_style("masculine:0.5,youthful:0.5").quick_hips() == pytest.approx(0.5)
 
 

@@ -24,21 +24,22 @@ The parts, one module each:
 - ``solve``: a plan's solve, for one lock or many in one pass (``solve_lock_jobs``), and
   the floor;
 - ``pelvis``, ``pace``, ``stance``: what the body's root and the feet's targets do;
-- ``arms``: the arms' swing at the style's amount while walking and running, beside the pace.
+- ``amplitude``: the arms' swing and the hips' bob at the style's amounts while walking and
+  running, beside the pace.
 """
 
-from .arms import ArmSwing
+from .amplitude import GaitAmplitude
 from .contacts import approach, lock_kernel
 from .legs import HIPS, LEG_INDEX, LEGS, knee_direction, leg_chain, solve_legs
 from .lock import FootLock, plan_locks, push_frames
 from .pace import MAX_PACE_RATIO, Pace
 from .pelvis import PelvisHeight
-from .settings import (AUTO_FEET, FEET, PACE_CHOICES, ContactSettings, arm_swing_of, check_feet, check_pace, feet_for,
+from .settings import (AUTO_FEET, FEET, PACE_CHOICES, ContactSettings, amplitudes_of, check_feet, check_pace, feet_for,
                        pace_of, quick_hips_of)
 from .solve import LockJob, kept_clearance, solve_lock_jobs
 from .stance import StanceOffset, stance_targets
 
-__all__ = ["AUTO_FEET", "FEET", "HIPS", "LEGS", "LEG_INDEX", "MAX_PACE_RATIO", "PACE_CHOICES", "ArmSwing", "ContactSettings",
-           "FootLock", "LockJob", "Pace", "PelvisHeight", "StanceOffset", "approach", "arm_swing_of", "check_feet", "check_pace",
-           "feet_for", "kept_clearance", "knee_direction", "leg_chain", "lock_kernel", "pace_of", "plan_locks",
+__all__ = ["AUTO_FEET", "FEET", "HIPS", "LEGS", "LEG_INDEX", "MAX_PACE_RATIO", "PACE_CHOICES", "ContactSettings",
+           "FootLock", "GaitAmplitude", "LockJob", "Pace", "PelvisHeight", "StanceOffset", "amplitudes_of", "approach",
+           "check_feet", "check_pace", "feet_for", "kept_clearance", "knee_direction", "leg_chain", "lock_kernel", "pace_of", "plan_locks",
            "push_frames", "quick_hips_of", "solve_legs", "solve_lock_jobs", "stance_targets"]

@@ -29,7 +29,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ..humanoid import HUMANOID_BONES
 from ..skeleton import Skeleton
-from .arms import ArmSwing
+from .amplitude import GaitAmplitude
 from .contacts import (ALL_MOVED, APPROACH_FRAMES, CONTACT_COLUMNS, FEET_COLUMNS, FLOOR_COLUMN, HISTORY_COLUMNS,
                        History, approach_columns, feet_down, frame_speeds, hysteresis, lock_kernel,
                        lock_weights, plant_or_release)
@@ -66,7 +66,7 @@ class FootLock:
                                    settings.flight_memory, settings.pelvis_quick_tau, settings.pelvis_quick_share)
         self.stance = StanceOffset(settings)
         self.pace = Pace(settings)
-        self.arms = ArmSwing(settings)
+        self.amplitude = GaitAmplitude(settings)
         self.frames = 0  # input frames pushed
         self._planted = np.zeros(2, dtype=bool)  # hysteresis state per foot
         self._floor_history: deque = deque(maxlen=settings.floor_window)  # lower ball height per frame

@@ -116,15 +116,17 @@ class ContactSettings:
     # as the style: the model card, "Swings on the input's path"). The pair model's own swing
     # is what reads exhausted (walks 93 -> 52 % on the worst judge on the input's path).
     swing_path: bool = False
-    # Arm swing (``ArmSwing``): points (input speed over ground in cm/frame, gain) of how far
-    # the style swings its arms against the performer's, joined by straight lines from
-    # (0, 1) (standing: waves and raises are left alone) and held beyond the last; () = the
-    # input's own swing. The input's speed is low-passed over pace_tau frames, and each arm
-    # bone's swing is its motion about a low-pass of the input's rotations over
-    # arm_mean_tau frames (a quarter of a second: a triple pole passes 15 % of a 1 Hz walk's
-    # swing into the mean, 8 % of a run's).
+    # Gait amplitude (``GaitAmplitude``): points (input speed over ground in cm/frame, gain)
+    # of how far the style swings its arms (``arm_swing``) and lifts and drops its hips
+    # (``hips_bob``) against the performer's, joined by straight lines from (0, 1)
+    # (standing: waves and raises are left alone) and held beyond the last; () = the
+    # input's own. The input's speed is low-passed over pace_tau frames; an arm bone's swing
+    # is its motion about a low-pass of the input's rotations, the hips' bob their height
+    # about a low-pass of the output's, both over amplitude_tau frames (a quarter of a
+    # second: a triple pole passes 15 % of a 1 Hz walk's swing into the mean, 8 % of a run's).
     arm_swing: tuple[tuple[float, float], ...] = ()
-    arm_mean_tau: float = 15.0
+    hips_bob: tuple[tuple[float, float], ...] = ()
+    amplitude_tau: float = 15.0
 
 
 # Where planted feet go (``--feet``). "input": on the input's own ankles, turned as the
@@ -206,12 +208,12 @@ def quick_hips_of(restyler, weights=None) -> float:
     return float(restyler.quick_hips(weights))
 
 
-def arm_swing_of(restyler, weights=None) -> tuple:
-    """``ContactSettings.arm_swing`` with ``restyler`` (towards the style mix ``weights``,
-    where it takes one): () for a restyler without one."""
-    if not hasattr(restyler, "arm_swing"):
-        return ()
-    return tuple(restyler.arm_swing(weights))
+def amplitudes_of(restyler, weights=None) -> dict:
+    """``ContactSettings.arm_swing`` and ``hips_bob``, by name, with ``restyler`` (towards the
+    style mix ``weights``, where it takes one): () each for a restyler without them."""
+    if not hasattr(restyler, "amplitudes"):
+        return {"arm_swing": (), "hips_bob": ()}
+    return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}
 
 
 def feet_for(name: str, restyler=None, pace: str = "style") -> ContactSettings:
@@ -220,6 +222,6 @@ def feet_for(name: str, restyler=None, pace: str = "style") -> ContactSettings:
     if name == AUTO_FEET:
         name = getattr(restyler, "feet", "input")
     styled = {"pace": pace_of(restyler, pace), "pelvis_quick_share": quick_hips_of(restyler),
-              "arm_swing": arm_swing_of(restyler)}
+              **amplitudes_of(restyler)}
     styled = {key: value for key, value in styled.items() if value}
     return replace(FEET[name], **styled) if styled else FEET[name]

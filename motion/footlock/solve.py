@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import rotations as rot
-from .arms import swing_frames
+from .amplitude import amplitude_frames
 from .legs import LEG_INDEX, leg_chain, solve_legs
 from .stance import stance_targets
 
@@ -78,14 +78,15 @@ class LockJob:
 def solve_lock_jobs(jobs: list[LockJob]) -> None:
     """Many locks' jobs (the daemon: every performer's frame of this tick) in one vectorised
     pass, each frame with its own performer's proportions: the pelvis height and stance
-    (each lock's state advanced in order), the lock of planted feet, then the floor (see
-    the module docstring); the arms' swing beside them (``ArmSwing``). Run per lock, numpy's per-call cost was 55x the work
+    (each lock's state advanced in order), the arms' swing and the hips' bob
+    (``GaitAmplitude``), the lock of planted feet, then the floor (see the module
+    docstring). Run per lock, numpy's per-call cost was 55x the work
     (``bench_daemon.py footlock``). Each job is solved once, in the order of its frames."""
     if not jobs:
         return
     rows = _Rows(jobs)
-    _swing_arms(rows)
     _advance(rows)
+    _scale_amplitudes(rows)
     _carry_free_feet(rows)
     _follow_input_path(rows)
     for with_stance in (False, True):  # the two kinds of target: one pass each
@@ -125,18 +126,24 @@ class _Rows:
         return self.offsets if self.offsets.ndim == 2 else self.offsets[rows]
 
 
-def _swing_arms(rows: _Rows) -> None:
-    """Each lock's ``ArmSwing`` on its rows' arms (``result``; the legs read ``outputs``):
-    one vectorised pass where every lock has one frame (the daemon's tick)."""
+def _scale_amplitudes(rows: _Rows) -> None:
+    """Each lock's ``GaitAmplitude`` on its rows: the arms' swing (``result``; the legs read
+    ``outputs``) and the hips' bob (``new_roots``, set by ``_advance``, before the legs are
+    solved from them); one vectorised pass where every lock has one frame (the daemon's tick)."""
     jobs = rows.jobs
     if len(jobs) > 1 and len(rows.roots) == len(jobs):
         shown = [1.0 if job.mix is None else float(job.mix[0]) for job in jobs]
-        swing_frames([job.lock.arms for job in jobs], rows.roots, rows.inputs, rows.result, shown)
+        heights = rows.new_roots[:, 1].copy()
+        amplitude_frames([job.lock.amplitude for job in jobs], rows.roots, rows.inputs, rows.result, heights, shown)
+        rows.new_roots[:, 1] = heights
         return
     for job, (lo, hi) in zip(jobs, rows.spans):
-        swung = job.lock.arms.apply(job.roots, job.inputs, rows.result[lo:hi], job.mix)
+        swung, bobbed = job.lock.amplitude.apply(job.roots, job.inputs, rows.result[lo:hi], rows.new_roots[lo:hi, 1],
+                                                 job.mix)
         if swung is not None:
             rows.result[lo:hi] = swung
+        if bobbed is not None:
+            rows.new_roots[lo:hi, 1] = bobbed
 
 
 def _advance(rows: _Rows) -> None:

@@ -1,0 +1,273 @@
+"""The style's arm swing and hip bob (models/gait_amplitude.py, motion/footlock/
+``GaitAmplitude``): the tables are what the training clips measure, a walking stream's arms
+swing and hips bob by the style's ratios while a standing one's (a wave) are left alone, the
+restyle's own change of the arms is kept, a clip at once equals a stream a frame at a time,
+and a live change of style never steps the arms."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from stylecast.models import data as D
+from stylecast.models.gait_amplitude import (ARM_SWINGS, HIPS_BOBS, amplitude_points, amplitudes, measure_arm_swings,
+                                             measure_hips_bobs)
+from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
+from stylecast.models.pace import PACES
+from stylecast.motion import rotations as rot
+from stylecast.motion.footlock import FEET, FootLock, GaitAmplitude
+from stylecast.motion.footlock.amplitude import SWING_INDEX, amplitude_frames
+from stylecast.motion.humanoid import HUMANOID_BONES
+
+DATA = D.default_data_dir()
+needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"the shared Bandai data is not at {DATA}")
+J = len(HUMANOID_BONES)
+UPPER_ARM = HUMANOID_BONES.index("LeftUpperArm")
+
+
+@needs_data
+@pytest.mark.parametrize("table, measure", [(ARM_SWINGS, measure_arm_swings), (HIPS_BOBS, measure_hips_bobs)])
+def test_the_amplitude_tables_are_what_the_training_clips_measure(table, measure):
+    measured = measure(D.list_files(DATA))
+    assert set(measured) == set(table)
+    for style, (walks, runs) in measured.items():
+        assert table[style] == pytest.approx((walks, runs), abs=0.0051), style
+
+
+def arm_swing_points(source, target):
+    return amplitude_points(ARM_SWINGS, source, target)
+
+
+def test_amplitude_points_give_the_target_mix_over_the_source_at_the_source_paces():
+    same = arm_swing_points("normal", {"normal": 1.0})
+    assert [g for _, g in same] == pytest.approx([1.0, 1.0])
+    assert [v for v, _ in same] == pytest.approx([PACES["normal"][0] / 60, PACES["normal"][1] / 60])
+    elderly = arm_swing_points("normal", {"elderly": 1.0})
+    assert [g for _, g in elderly] == pytest.approx([7.09 / 13.84, 14.64 / 14.63])
+    half = arm_swing_points("normal", {"elderly": 0.5, "youthful": 0.5})
+    assert half[0][1] == pytest.approx((7.09 + 21.33) / 2 / 13.84)
+    from_elderly = arm_swing_points("elderly", {"normal": 1.0})  # any source: at its own paces
+    assert from_elderly[0] == pytest.approx((PACES["elderly"][0] / 60, 13.84 / 7.09))
+    assert arm_swing_points("normal", {"dancing": 1.0}) == () and arm_swing_points("robot", {"normal": 1.0}) == ()
+    assert amplitudes("normal", {"elderly": 1.0})["hips_bob"][0][1] == pytest.approx(0.69 / 1.28)
+
+
+def test_the_gain_is_one_at_rest_and_the_line_through_its_points():
+    amplitude = GaitAmplitude(replace(FEET["input"], arm_swing=((2.0, 0.5), (5.0, 2.0)), hips_bob=((2.0, 3.0),)))
+    assert amplitude.gains(0.0) == (1.0, 1.0)
+    assert amplitude.gains(1.0) == pytest.approx((0.75, 2.0))
+    assert amplitude.gains(3.5) == pytest.approx((1.25, 3.0))
+    assert amplitude.gains(9.0) == pytest.approx((2.0, 3.0))
+    assert GaitAmplitude(FEET["input"]).gains(3.0) == (1.0, 1.0)  # no points: the input's own
+
+
+def arms_of(amplitude: GaitAmplitude, roots, inputs, outputs, mix=None):
+    """The arms ``amplitude`` gives these frames (None: unchanged), the roots' heights as the output's."""
+    return amplitude.apply(roots, inputs, outputs, roots[:, 1], mix)[0]
+
+
+def swinging(n: int, speed: float, amplitude_deg: float = 20.0, hz: float = 1.0, seed: int = 0):
+    """A synthetic stream: roots moving ``speed`` cm a frame along +Z, every bone turned a
+    little from the rest pose (random, fixed), the upper arms swinging about X at ``hz``."""
+    rng = np.random.default_rng(seed)
+    base = rot.exp_map(rng.normal(0, 0.3, (J, 3)))
+    t = np.arange(n) / 60.0
+    q = np.repeat(base[None], n, axis=0)
+    angle = np.radians(amplitude_deg) * np.sin(2 * np.pi * hz * t)
+    for k, j in enumerate(SWING_INDEX):
+        sign = 1.0 if k < 2 else -1.0  # the arms swing in opposite phase
+        q[:, j] = rot.multiply(rot.exp_map(np.outer(sign * angle, [1.0, 0.0, 0.0])), base[j])
+    roots = np.stack([np.zeros(n), np.full(n, 100.0), speed * np.arange(n)], axis=1)
+    return roots, q
+
+
+def swing_deg(q: np.ndarray, settled: slice) -> float:
+    """The upper arm's swing: half its peak-to-peak angle from its mean pose over ``settled``."""
+    arm = q[settled, UPPER_ARM]
+    mean = arm.mean(axis=0)
+    mean /= np.linalg.norm(mean)
+    angle = np.degrees(np.linalg.norm(rot.log_map(rot.multiply(arm, rot.inverse(mean[None]))), axis=-1))
+    return float(angle.max())
+
+
+def test_a_walking_stream_swings_its_arms_by_the_gain_and_a_standing_one_not_at_all():
+    settings = replace(FEET["input"], arm_swing=((2.0, 0.5), (5.0, 2.0)))
+    settled = slice(180, None)
+    roots, q = swinging(600, speed=2.0)
+    out = arms_of(GaitAmplitude(settings), roots, q, q)
+    # the instrument sees the swing as it is where nothing is done...
+    assert swing_deg(q, settled) == pytest.approx(20.0, abs=0.1)
+    # ...half of it at the walking gain (the low-passed mean keeps ~15 % of a 1 Hz swing, so
+    # the swing about the input's mean is a little less than the input's whole swing)
+    assert swing_deg(out, settled) == pytest.approx(10.0, abs=1.6)
+    fast_roots, _ = swinging(600, speed=5.0)
+    faster = arms_of(GaitAmplitude(settings), fast_roots, q, q)
+    assert swing_deg(faster, settled) == pytest.approx(40.0, abs=3.2)
+    # the other bones are the restyle's, untouched (the elbows, which this input holds
+    # still, rebuilt from their hinge parts: to rounding)
+    elbows = [HUMANOID_BONES.index(b) for b in ("LeftLowerArm", "RightLowerArm")]
+    others = np.setdiff1d(np.arange(J), SWING_INDEX + elbows)
+    np.testing.assert_array_equal(out[:, others], q[:, others])
+    np.testing.assert_allclose(out[:, elbows], q[:, elbows], atol=1e-12)
+    # standing (the roots still: a wave, a raise): the arms are the action, left as they are
+    still = np.repeat(roots[:1], len(roots), axis=0)
+    assert arms_of(GaitAmplitude(settings), still, q, q) is None
+    # no swing set: nothing changes either
+    assert arms_of(GaitAmplitude(FEET["input"]), roots, q, q) is None
+
+
+def test_an_elbow_swings_by_the_gain_and_stays_a_hinge():
+    """An elbow (``motion.hinges``: it flexes about its Y) bending back and forth while
+    walking: its flexion's swing is scaled by the gain about its mean, it bends sideways no
+    more than before (a hinge), and a gain that would take it past straight eases it there
+    instead. Scaled as a free rotation, the elbows went off their hinge."""
+    from stylecast.motion.hinges import elbow_flexion
+
+    n, settled = 600, slice(180, None)
+    roots, q = swinging(n, speed=2.0, amplitude_deg=0.0)
+    left = HUMANOID_BONES.index("LeftLowerArm")
+    bend = 0.6 + 0.3 * np.sin(2 * np.pi * np.arange(n) / 60.0)  # radians, 1 Hz
+    q[:, left] = rot.exp_map(np.outer(-bend, [0.0, 1.0, 0.0]))  # the left elbow bends with -Y (``HINGES``)
+    assert elbow_flexion(q)[settled, 0] == pytest.approx(bend[settled])  # the instrument reads the bend
+    out = arms_of(GaitAmplitude(replace(FEET["input"], arm_swing=((2.0, 0.5),))), roots, q, q)
+    flexion = elbow_flexion(out)[settled, 0]
+    assert np.ptp(flexion) / np.ptp(bend[settled]) == pytest.approx(0.5, abs=0.08)
+    assert flexion.mean() == pytest.approx(bend[settled].mean(), abs=0.02)
+    sideways = rot.log_map(out[:, left])[:, [0, 2]]
+    assert np.abs(sideways).max() < 1e-9  # a hinge still
+    wide = arms_of(GaitAmplitude(replace(FEET["input"], arm_swing=((2.0, 4.0),))), roots, q, q)
+    assert elbow_flexion(wide)[:, 0].min() > 0.0  # four times the swing would pass straight: eased
+
+
+def test_the_restyles_own_change_of_the_arms_is_kept():
+    """The swing adds (g - 1) of the INPUT's swing to the restyled arm: a restyle that turns the
+    arm by a fixed rotation keeps that turn, and where the input holds its arm still, the
+    restyled arm's own motion passes untouched."""
+    settings = replace(FEET["input"], arm_swing=((2.0, 0.5),))
+    roots, q = swinging(400, speed=2.0)
+    turn = rot.exp_map(np.array([0.0, 0.0, 0.4]))
+    restyled = q.copy()
+    restyled[:, SWING_INDEX] = rot.multiply(turn, q[:, SWING_INDEX])
+    out = arms_of(GaitAmplitude(settings), roots, q, restyled)
+    plain = arms_of(GaitAmplitude(settings), roots, q, q)
+    # out = S q and restyled-then-swung = S turn q: the same swing S on top of the turn
+    s_plain = rot.multiply(plain[:, SWING_INDEX], rot.inverse(q[:, SWING_INDEX]))
+    s_turned = rot.multiply(out[:, SWING_INDEX], rot.inverse(restyled[:, SWING_INDEX]))
+    np.testing.assert_allclose(np.abs(np.sum(s_plain * s_turned, axis=-1)), 1.0, atol=1e-12)
+    _, held = swinging(400, speed=2.0, amplitude_deg=0.0)  # the input's arms still
+    _, moving = swinging(400, speed=2.0)
+    kept = arms_of(GaitAmplitude(settings), roots, held, moving)
+    np.testing.assert_allclose(kept[:, SWING_INDEX], moving[:, SWING_INDEX], atol=1e-12)
+
+
+def bobbing(n: int, speed: float, amplitude: float = 2.0, hz: float = 2.0) -> np.ndarray:
+    """Roots moving ``speed`` cm a frame along +Z, their height rising and falling by
+    ``amplitude`` cm at ``hz`` (a step each half stride)."""
+    t = np.arange(n) / 60.0
+    return np.stack([np.zeros(n), 100.0 + amplitude * np.sin(2 * np.pi * hz * t), speed * np.arange(n)], axis=1)
+
+
+def test_a_walking_stream_bobs_its_hips_by_the_gain_and_a_standing_one_not_at_all():
+    settings = replace(FEET["input"], hips_bob=((2.0, 0.5), (5.0, 2.0)))
+    _, q = swinging(600, speed=0.0)
+    settled = slice(180, None)
+
+    def bob(heights):
+        return (heights[settled].max() - heights[settled].min()) / 2
+
+    roots = bobbing(600, speed=2.0)
+    assert bob(roots[:, 1]) == pytest.approx(2.0, abs=0.02)  # the instrument sees the input's bob (sampled peaks)
+    swung, bobbed = GaitAmplitude(settings).apply(roots, q, q, roots[:, 1])
+    assert swung is None  # no arm swing set: the arms as they were
+    # half the bob at the walking gain, about its low-passed level (which keeps a little of
+    # a 2 Hz bob, so the bob about it is a little less than the whole)
+    assert bob(bobbed) == pytest.approx(1.0, abs=0.1)
+    _, faster = GaitAmplitude(settings).apply(bobbing(600, speed=5.0), q, q, roots[:, 1])
+    assert bob(faster) == pytest.approx(4.0, abs=0.3)
+    # the level the hips bob about stays where it was: the mean height is the input's
+    assert bobbed[settled].mean() == pytest.approx(roots[settled, 1].mean(), abs=0.05)
+    still = bobbing(600, speed=0.0)  # standing (a squat, a bounce): left alone
+    assert GaitAmplitude(settings).apply(still, q, q, still[:, 1]) == (None, None)
+
+
+def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
+    """``apply`` on a whole clip equals ``amplitude_frames`` over several streams, one frame
+    each per call (the daemon's tick), with different amplitudes and a fade."""
+    n = 240
+    streams = [(bobbing(n, speed), swinging(n, speed, seed=k)[1]) for k, speed in enumerate((2.0, 5.0, 0.0, 2.0))]
+    settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips) for arms, hips in
+                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),)), (((2.0, 1.5),), ()), (((2.0, 0.5),), ((2.0, 2.0),)),
+                 ((), ()))]
+    mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n)]
+    whole = []
+    for setting, (r, q), m in zip(settings, streams, mixes):
+        swung, bobbed = GaitAmplitude(setting).apply(r, q, q, r[:, 1], m)
+        whole.append((q if swung is None else swung, r[:, 1] if bobbed is None else bobbed))
+    live = [GaitAmplitude(s) for s in settings]
+    for t in range(n):
+        inputs = np.stack([q[t] for _, q in streams])
+        outputs, heights = inputs.copy(), np.array([r[t, 1] for r, _ in streams])
+        amplitude_frames(live, np.stack([r[t] for r, _ in streams]), inputs, outputs, heights, [m[t] for m in mixes])
+        for k in range(len(streams)):
+            np.testing.assert_allclose(outputs[k], whole[k][0][t], atol=1e-12)
+            assert heights[k] == pytest.approx(whole[k][1][t], abs=1e-9)
+    assert np.abs(whole[0][0] - streams[0][1]).max() > 0.01 and np.abs(whole[0][1] - streams[0][0][:, 1]).max() > 0.1
+
+
+def test_a_live_change_of_style_moves_the_arms_smoothly():
+    """A new swing set mid-stream (``set_points``: /stylecast/style) eases in over the
+    low-pass: no frame turns the arm by more than the input's own swing does."""
+    roots, q = swinging(600, speed=2.0)
+    amplitude = GaitAmplitude(replace(FEET["input"], arm_swing=((2.0, 1.0),)))
+    first = arms_of(amplitude, roots[:300], q[:300], q[:300])
+    amplitude.set_points(arm_swing=((2.0, 0.4),))
+    second = arms_of(amplitude, roots[300:], q[300:], q[300:])
+    out = np.concatenate([q[:300] if first is None else first, second])
+    step = np.degrees(np.linalg.norm(rot.log_map(rot.multiply(out[1:, UPPER_ARM], rot.inverse(out[:-1, UPPER_ARM]))),
+                                     axis=-1))
+    own = np.degrees(np.linalg.norm(rot.log_map(rot.multiply(q[1:, UPPER_ARM], rot.inverse(q[:-1, UPPER_ARM]))),
+                                    axis=-1))
+    assert step.max() <= own.max() + 1e-9
+    # and the swing reaches the new gain
+    assert swing_deg(out, slice(480, None)) < 0.5 * swing_deg(q, slice(480, None))
+
+
+def test_a_teleport_of_the_root_is_not_a_sprint():
+    """A looped clip jumping back (``TELEPORT_STEP``) keeps the last speed: the gain does
+    not leap to the runs' for one jump."""
+    settings = replace(FEET["input"], arm_swing=((2.0, 1.0), (5.0, 3.0)))
+    roots, q = swinging(400, speed=2.0)
+    roots[200:, 2] -= 600.0  # the clip starts over
+    out = arms_of(GaitAmplitude(settings), roots, q, q)
+    # gain 1 at the walk (within the low-pass's rounding), and the jump did not move it
+    np.testing.assert_allclose(q if out is None else out, q, atol=1e-9)
+    runs = GaitAmplitude(replace(settings, arm_swing=((2.0, 1.0), (3.0, 3.0))))  # the control: a faster
+    roots[200:, 2] += 600.0 - 10.0  # ...step of 8 cm a frame, not a jump, does move the arms
+    assert np.abs(arms_of(runs, roots, q, q) - q).max() > 0.01
+
+
+@needs_data
+def test_a_held_out_walk_swings_its_arms_and_bobs_as_the_style_and_a_wave_is_left_alone():
+    """Real takes through the foot lock with the pose unchanged (the amplitudes alone): a
+    held-out normal walk given the elderly amplitudes swings its hands and bobs its hips by
+    about the table's ratios (the walks' 0.51 and 0.54), a held-out wave keeps its hands as
+    they were."""
+    from stylecast.models.data import bandai_skeleton
+
+    files = D.list_files(DATA)
+    sk = bandai_skeleton(files)
+    settings = replace(FEET["input"], **amplitudes("normal", {"elderly": 1.0}))
+    for action, low, high in (("walk", 0.40, 0.62), ("wave-left-hand", 0.98, 1.02)):
+        take = next(f for f in D.files_for_style(files, "normal", "val") if f.action == action)
+        m = D.load_motions([take])[0]
+        roots, q = m.root_positions.astype(np.float64), m.rotations.astype(np.float64)
+        lock = FootLock(sk, settings=settings)
+        lock.push(roots, q)
+        new_roots, out = lock.apply(0, roots, q, q)
+        p_in, p_out = world_positions(q, roots, sk), world_positions(out, new_roots, sk)
+        before, after = arm_swing(hips_yaw(q), p_in), arm_swing(hips_yaw(out), p_out)
+        assert low <= after / before <= high, (action, after / before)
+        if action == "walk":  # the hips bob about the elderly walks' 0.54 of it
+            assert 0.4 <= hips_bob(p_out) / hips_bob(p_in) <= 0.7, hips_bob(p_out) / hips_bob(p_in)
