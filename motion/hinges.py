@@ -144,16 +144,19 @@ def elbow_flexion(rotations: np.ndarray) -> np.ndarray:
     return table.bent * np.sum(swing * table.flexion, axis=-1)
 
 
-def add_elbow_flexion(inputs: np.ndarray, outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
+def add_elbow_flexion(outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
     """The outputs (..., J, 4) with ``added`` (..., 2) radians more flexion at each elbow (the
     gait amplitude's arm swing, ``footlock.GaitAmplitude``), the rest of each elbow as it was:
-    a hinge stays a hinge, and the flexion is eased at straight as ``keep_hinges`` eases it
-    against the ``inputs``' own."""
+    a hinge stays a hinge, and the flexion stops at straight (or where the output already
+    was past it). A hard stop, not ``eased_bend``: easing an already eased flexion again
+    moves it even where nothing is added; and the swing it stops is a run's, bent 70-100
+    degrees at the elbow, which a swing of the style's amplitude does not straighten."""
     table = _ELBOWS
     out = np.array(outputs, dtype=np.float64)
     before = out[..., table.joints, :]
     swing, twist = _swing_twist(before, table.axis)
-    bend = eased_bend(elbow_flexion(inputs), table.bent * np.sum(swing * table.flexion, axis=-1) + added)
+    bend_out = table.bent * np.sum(swing * table.flexion, axis=-1)
+    bend = np.maximum(bend_out + added, np.minimum(bend_out, 0.0))
     swing = swing * (1.0 - table.flexion) + (table.bent * bend)[..., None] * table.flexion
     q = rot.multiply(rot.exp_map(swing), twist)
     out[..., table.joints, :] = np.where(np.sum(q * before, axis=-1, keepdims=True) < 0, -q, q)

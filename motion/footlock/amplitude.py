@@ -101,6 +101,13 @@ class GaitAmplitude:
         points."""
         return self._arms.at(speed), self._hips.at(speed)
 
+    @property
+    def active(self) -> tuple[bool, bool]:
+        """Whether the arms' and the hips' parts have work: a gain set, or one still easing
+        back to 1. Their low-passes run only then (a session that never had a gain costs
+        nothing but its speed), and start settled on the frame they start at."""
+        return self._arms.on or self._moving[0], self._hips.on or self._moving[1]
+
     def apply(self, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, heights: np.ndarray,
               mix: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The next frames in order: input roots (n, 3), input and restyled rotations (n, J, 4),
@@ -108,23 +115,33 @@ class GaitAmplitude:
         it) -> the outputs with the arms' swing scaled (a new array) and the new heights, each
         None where nothing changes."""
         n = len(roots)
+        arms_on, hips_on = self.active
         shown = [1.0] * n if mix is None else np.broadcast_to(mix, (n,)).tolist()
         extra = np.array([self._extras_of_frame(x, z, s) for (x, _, z), s in zip(np.asarray(roots).tolist(), shown)])
-        inputs = np.asarray(inputs, np.float64)
-        arms = self._arm_signal(inputs)
-        if self._arm_state is None:
-            self._arm_state = self._settled * arms[0]
-        mean, self._arm_state = lfilter(self._b, self._a, arms, axis=0, zi=self._arm_state)
-        heights = np.asarray(heights, np.float64)
-        if not self._height_started:
-            self._height_started = True
-            self._height.settle_on(float(heights[0]))
-        level = self._height.run(heights)
-        swung = None
-        if self._moving[0]:
-            swung = _swung(inputs, arms, mean, extra[:, 0], outputs)
-        bobbed = level + (1.0 + extra[:, 1]) * (heights - level) if self._moving[1] else None
+        swung = bobbed = None
+        if arms_on:
+            inputs = np.asarray(inputs, np.float64)
+            arms = _arm_signal(inputs, self._aligned_to(inputs[0]))
+            self._last = arms[-1, :ARMS * 4].reshape(ARMS, 4)
+            if self._arm_state is None:
+                self._arm_state = self._settled * arms[0]
+            mean, self._arm_state = lfilter(self._b, self._a, arms, axis=0, zi=self._arm_state)
+            if self._moving[0]:
+                swung = _swung(arms, mean, extra[:, 0], outputs)
+        if hips_on:
+            heights = np.asarray(heights, np.float64)
+            if not self._height_started:
+                self._height_started = True
+                self._height.settle_on(float(heights[0]))
+            level = self._height.run(heights)
+            if self._moving[1]:
+                bobbed = level + (1.0 + extra[:, 1]) * (heights - level)
         return swung, bobbed
+
+    def _aligned_to(self, first: np.ndarray) -> np.ndarray:
+        """The upper arms' quaternions (ARMS, 4) the next frame's signs follow: the last
+        frame's, or the first frame's own."""
+        return first[SWING_INDEX] if self._last is None else self._last
 
     def _extras_of_frame(self, x: float, z: float, shown: float) -> tuple[float, float]:
         """One frame of the gains' recurrence on Python floats: each g - 1, low-passed. The
@@ -153,21 +170,25 @@ class GaitAmplitude:
             extras.append(extra)
         return extras[0], extras[1]
 
-    def _arm_signal(self, inputs: np.ndarray) -> np.ndarray:
-        """Input rotations (n, J, 4) -> what the arms' low-pass runs on (n, CHANNELS): the upper
-        arms' quaternions, each bone's signs made continuous with the last frame's (q and -q
-        are one rotation; the low-pass needs one of them), and the elbows' flexion."""
-        arms = inputs[:, SWING_INDEX].copy()
-        before = arms[0] if self._last is None else self._last
-        for t in range(len(arms)):  # n is a block's frames (one in the daemon)
-            flip = np.sum(arms[t] * before, axis=-1) < 0.0
-            arms[t, flip] *= -1.0
+
+
+def _arm_signal(inputs: np.ndarray, before: np.ndarray) -> np.ndarray:
+    """Input rotations (n, J, 4) of one stream, in order, or one frame each of many (n
+    streams: ``before`` (n, ARMS, 4) then) -> what the arms' low-pass runs on (n, CHANNELS):
+    the upper arms' quaternions, each bone's signs made continuous with the frame before's
+    (``before``: the stream's last; q and -q are one rotation, the low-pass needs one of
+    them), and the elbows' flexion."""
+    arms = inputs[:, SWING_INDEX].copy()
+    if before.ndim == 3:  # many streams, one frame each
+        arms[np.sum(arms * before, axis=-1) < 0.0] *= -1.0
+    else:
+        for t in range(len(arms)):  # a block's frames in order
+            arms[t, np.sum(arms[t] * before, axis=-1) < 0.0] *= -1.0
             before = arms[t]
-        self._last = arms[-1].copy()
-        return np.concatenate([arms.reshape(len(arms), -1), elbow_flexion(inputs)], axis=1)
+    return np.concatenate([arms.reshape(len(arms), -1), elbow_flexion(inputs)], axis=1)
 
 
-def _swung(inputs: np.ndarray, arms: np.ndarray, mean: np.ndarray, extra: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+def _swung(arms: np.ndarray, mean: np.ndarray, extra: np.ndarray, outputs: np.ndarray) -> np.ndarray:
     """The outputs (n, J, 4) with (g - 1) = ``extra`` (n,) of the input arms' swing added:
     ``arms`` (n, CHANNELS), the input arms' signal (``_arm_signal``), and ``mean`` its
     low-pass. Each upper arm becomes exp(extra * log(arm * mean^-1)) * its restyled rotation,
@@ -178,31 +199,41 @@ def _swung(inputs: np.ndarray, arms: np.ndarray, mean: np.ndarray, extra: np.nda
     swing = rot.log_map(rot.multiply(upper, rot.inverse(level)))
     out = np.array(outputs, np.float64)
     out[:, SWING_INDEX] = rot.multiply(rot.exp_map(extra[:, None, None] * swing), out[:, SWING_INDEX])
-    return add_elbow_flexion(inputs, out, extra[:, None] * (arms[:, ARMS * 4:] - mean[:, ARMS * 4:]))
+    return add_elbow_flexion(out, extra[:, None] * (arms[:, ARMS * 4:] - mean[:, ARMS * 4:]))
 
 
 def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,
                      heights: np.ndarray, shown: list[float]) -> None:
     """One frame of each of many streams (the daemon's tick): input roots (P, 3), input and
     restyled rotations (P, J, 4) and output root heights (P,) (``outputs`` and ``heights``
-    changed in place) and the share shown of each; the same as each ``apply``, with one
-    vectorised pass for the arms' low-pass."""
+    changed in place) and the share shown of each; the same as each ``apply``, the arms of
+    all in one vectorised pass (per stream, numpy's per-call cost would be most of it)."""
+    active = [g.active for g in amplitudes]
     extra = np.array([g._extras_of_frame(x, z, f) for g, (x, _, z), f in zip(amplitudes, roots.tolist(), shown)])
-    arms = np.concatenate([g._arm_signal(inputs[k][None]) for k, g in enumerate(amplitudes)])  # (P, CHANNELS)
-    for g, arm in zip(amplitudes, arms):
+    for k, (g, (_, hips_on)) in enumerate(zip(amplitudes, active)):
+        if hips_on:  # a scalar each: Python floats
+            height = float(heights[k])
+            if not g._height_started:
+                g._height_started = True
+                g._height.settle_on(height)
+            level = g._height.step(height)
+            if g._moving[1]:
+                heights[k] = level + (1.0 + extra[k, 1]) * (height - level)
+    at = [k for k, (arms_on, _) in enumerate(active) if arms_on]
+    if not at:
+        return
+    swings = [amplitudes[k] for k in at]
+    frames = inputs[at]
+    arms = _arm_signal(frames, np.stack([g._aligned_to(q) for g, q in zip(swings, frames)]))  # (A, CHANNELS)
+    for g, arm in zip(swings, arms):
+        g._last = arm[:ARMS * 4].reshape(ARMS, 4)
         if g._arm_state is None:
             g._arm_state = g._settled * arm
-    state = np.stack([g._arm_state for g in amplitudes], axis=1)  # (3, P, CHANNELS); the streams share one tau
-    mean, state = lfilter_one_step(amplitudes[0]._b, amplitudes[0]._a, arms, state)
-    for k, g in enumerate(amplitudes):
+    state = np.stack([g._arm_state for g in swings], axis=1)  # (3, A, CHANNELS); the streams share one tau
+    mean, state = lfilter_one_step(swings[0]._b, swings[0]._a, arms, state)
+    for k, g in enumerate(swings):
         g._arm_state = state[:, k]
-        height = float(heights[k])
-        if not g._height_started:
-            g._height_started = True
-            g._height.settle_on(height)
-        level = g._height.step(height)
-        if g._moving[1]:
-            heights[k] = level + (1.0 + extra[k, 1]) * (height - level)
-    rows = [k for k, g in enumerate(amplitudes) if g._moving[0]]
+    rows = [i for i, g in enumerate(swings) if g._moving[0]]
     if rows:
-        outputs[rows] = _swung(inputs[rows], arms[rows], mean[rows], extra[rows, 0], outputs[rows])
+        at_rows = [at[i] for i in rows]
+        outputs[at_rows] = _swung(arms[rows], mean[rows], extra[at_rows, 0], outputs[at_rows])
