@@ -327,9 +327,15 @@ def bench_footlock(model, motion, runs=5, performers=16):
     # the stance's offset settling through the blend-in (``stance_settle``) against the frozen
     # offset it replaced, the baseline in the same run; the stance with the quick hips a
     # style asks for (``pelvis_quick_share``: masculine's), two more low-passes a frame; and
-    # the feet in the air on the input's path (``swing_path``: an IK for each free leg)
+    # the feet in the air on the input's path (``swing_path``: an IK for each free leg); and
+    # the path with the elderly arm swing and hip bob (``GaitAmplitude``: the multistyle
+    # model's towards elderly), the path alone its baseline
+    from stylecast.models.gait_amplitude import amplitudes
+
     for feet, overrides, label in (("input", {}, "input"),
                                    ("path", {}, "path (elderly and exhausted)"),
+                                   ("path", amplitudes("normal", {"elderly": 1.0}),
+                                    "path, elderly arm swing and hip bob"),
                                    ("stance", {"stance_settle": False}, "stance, frozen (before)"),
                                    ("stance", {}, "stance"),
                                    ("stance", {"pelvis_quick_share": 1.0}, "stance, quick hips (masculine)")):
