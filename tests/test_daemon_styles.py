@@ -197,9 +197,10 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # elderly asks for none
         assert [s.feet.pelvis.quick_share for s in daemon.sessions] == [0.0, 0.75]
         # ...and its arms swing and hips bob as its own style's (models/gait_amplitude.py):
-        # alice's walks half as far, bob's half active's and half masculine's
+        # alice's walks half as far, bob's arms half active's and half masculine's; his
+        # hips would bob twice as much, and a bob only lessens (footlock MAX_BOB_GAIN)
         assert [s.feet.amplitude.gains(walk) for s in daemon.sessions] == pytest.approx(
-            [(7.09 / 13.84, 0.69 / 1.28), ((16.25 + 13.90) / 2 / 13.84, (2.77 + 2.41) / 2 / 1.28)])
+            [(7.09 / 13.84, 0.69 / 1.28), ((16.25 + 13.90) / 2 / 13.84, 1.0)])
         assert any("unknown style 'sleepy'" in r.getMessage() and "youthful" in r.getMessage() for r in caplog.records)
         # The delivered words are the model's own answer for each row's mix.
         word = np.stack([walk_clip(60).rotations])

@@ -14,7 +14,7 @@ the pace, the stream takes the style's amplitudes:
   d_t = log(q_t * m_t^-1), m_t a low-pass of the input's rotations over ``amplitude_tau``
   frames, is scaled by the style's ratio g: the output's bone becomes exp((g - 1) d_t) times
   the restyled one, which leaves the restyle's own change of the arm as it was and adds
-  (g - 1) of the performer's swing; each elbow, a hinge, bends by (g - 1) times its input
+  (g - 1) of the performer's swing (g at most ``MAX_SWING_GAIN``); each elbow, a hinge, bends by (g - 1) times its input
   flexion's way from its own low-pass more (``hinges.add_elbow_flexion``);
 - hips: the output root's height about a low-pass of itself (the hips' height stage's, the
   pace's and the input's rise and fall together) is scaled by the hips' ratio, at most 1
@@ -52,6 +52,12 @@ from .settings import ContactSettings
 SWING_BONES = ("LeftUpperArm", "RightUpperArm")
 ARMS = len(SWING_BONES)
 CHANNELS = ARMS * 4 + 2  # the low-passed signal: the upper arms' quaternions, the elbows' flexion
+# The most the arms' swing is scaled: a swing amplified g times is g times the hands' jerk
+# there. With active's runs at 1.88x (youthful's 1.80x) the multistyle model's jerk towards
+# active rose 1.075 -> 1.102, over the 1.10 bar; at most 1.5x, 1.094 (youthful 1.093 ->
+# 1.082), for 1.1 points of active's style on the worst judge of each panel and none of
+# youthful's (the model card, "Arm swing and hip bob").
+MAX_SWING_GAIN = 1.5
 # The most the hips' bob is scaled: a bob only lessens (as a pace only slows). Hips lifted and
 # dropped by more than the restyled legs asked for stretched and folded the planted legs in
 # the IK: the multistyle model's largest one-frame jerk towards active 2.2 -> 4.4x the
@@ -85,7 +91,7 @@ class GaitAmplitude:
     """The output's arm swing and hip bob at the style's amounts (see the module docstring)."""
 
     def __init__(self, settings: ContactSettings):
-        self._arms = _Gain(settings.arm_swing, settings.pace_tau)
+        self._arms = _Gain(settings.arm_swing, settings.pace_tau, most=MAX_SWING_GAIN)
         self._hips = _Gain(settings.hips_bob, settings.pace_tau, most=MAX_BOB_GAIN)
         self._b, self._a = triple_pole(settings.amplitude_tau)
         self._settled = lfilter_zi(self._b, self._a)[:, None]  # the state per unit of a held input
@@ -108,7 +114,7 @@ class GaitAmplitude:
     def gains(self, speed: float) -> tuple[float, float]:
         """The arms' and the hips' gains at the input's speed ``speed`` (cm/frame): 1 at rest,
         straight lines through the points, the last point's gain beyond it; 1 without
-        points; the hips' at most MAX_BOB_GAIN."""
+        points; the arms' at most MAX_SWING_GAIN, the hips' at most MAX_BOB_GAIN."""
         return self._arms.at(speed), self._hips.at(speed)
 
     @property
