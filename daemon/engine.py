@@ -458,9 +458,9 @@ class Daemon:
 
     def _follow_style(self, sessions) -> None:
         """The pace each of ``sessions`` covers ground at, how quickly its hips follow the
-        restyled legs and how far its arms swing and hips bob, after a new model, direction or style
-        (``--pace``; ``footlock.Pace``, ``PelvisHeight`` and ``GaitAmplitude`` move to them
-        smoothly)."""
+        restyled legs and how far its arms swing and hips bob, after a new model, direction
+        or style (``--pace``; ``footlock.Pace``, ``PelvisHeight`` and ``GaitAmplitude`` move to
+        them smoothly)."""
         model = self.worker.restyler
         for s in sessions:
             s.feet.pace.set_points(pace_of(model, self.config.pace, s.style_target))

@@ -56,7 +56,7 @@ def measure_paces(files, cache_dir=None) -> dict[str, tuple[float, float]]:
 def per_style_locomotion(files, read, cache_dir=None) -> dict[str, tuple[float, float]]:
     """{style: (walks, runs)}: ``read`` (a motion -> one figure) averaged over each style's
     training takes of each walking action and of runs, the walking actions' means averaged
-    (the held-out files stay unseen); ``PACES`` and ``arm_swing.ARM_SWINGS`` are read so."""
+    (the held-out files stay unseen); ``PACES`` and ``gait_amplitude``'s tables are read so."""
     from . import data as D
 
     out = {}

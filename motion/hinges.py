@@ -149,8 +149,7 @@ def add_elbow_flexion(outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
     gait amplitude's arm swing, ``footlock.GaitAmplitude``), the rest of each elbow as it was:
     a hinge stays a hinge, and the flexion stops at straight (or where the output already
     was past it). A hard stop, not ``eased_bend``: easing an already eased flexion again
-    moves it even where nothing is added; and the swing it stops is a run's, bent 70-100
-    degrees at the elbow, which a swing of the style's amplitude does not straighten."""
+    moves it even where nothing is added."""
     table = _ELBOWS
     out = np.array(outputs, dtype=np.float64)
     before = out[..., table.joints, :]

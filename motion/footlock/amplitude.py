@@ -14,8 +14,9 @@ the pace, the stream takes the style's amplitudes:
   d_t = log(q_t * m_t^-1), m_t a low-pass of the input's rotations over ``amplitude_tau``
   frames, is scaled by the style's ratio g: the output's bone becomes exp((g - 1) d_t) times
   the restyled one, which leaves the restyle's own change of the arm as it was and adds
-  (g - 1) of the performer's swing (g at most ``MAX_SWING_GAIN``); each elbow, a hinge, bends by (g - 1) times its input
-  flexion's way from its own low-pass more (``hinges.add_elbow_flexion``);
+  (g - 1) of the performer's swing (g at most ``MAX_SWING_GAIN``); each elbow, a hinge,
+  bends by (g - 1) times its input flexion's way from its own low-pass more
+  (``hinges.add_elbow_flexion``);
 - hips: the output root's height about a low-pass of itself (the hips' height stage's, the
   pace's and the input's rise and fall together) is scaled by the hips' ratio, at most 1
   (``MAX_BOB_GAIN``), before the leg IK puts the planted feet back on the floor from there.
@@ -56,8 +57,8 @@ CHANNELS = ARMS * 4 + 2  # the low-passed signal: the upper arms' quaternions, t
 # The most the arms' swing is scaled: a swing amplified g times is g times the hands' jerk
 # there. With active's runs at 1.88x (youthful's 1.80x) the multistyle model's jerk towards
 # active rose 1.075 -> 1.102, over the 1.10 bar; at most 1.5x, 1.094 (youthful 1.093 ->
-# 1.082), for 1.1 points of active's style on the worst judge of each panel and none of
-# youthful's (the model card, "Arm swing and hip bob").
+# 1.082), for 1.1 points of active's style on the worst judge of each panel (youthful's:
+# 0.0 and 0.2; the model card, "Arm swing and hip bob").
 MAX_SWING_GAIN = 1.5
 # The most the hips' bob is scaled: a bob only lessens (as a pace only slows). Hips lifted and
 # dropped by more than the restyled legs asked for stretched and folded the planted legs in
