@@ -201,6 +201,20 @@ def test_a_walking_stream_bobs_its_hips_by_the_gain_and_a_standing_one_not_at_al
     assert GaitAmplitude(settings).apply(still, q, q, still[:, 1]) == (None, None)
 
 
+def test_the_hips_bob_reads_a_known_rise_and_fall():
+    """``metrics.hips_bob`` (the table's instrument): hips rising and falling 2 cm at 2 Hz
+    read 2 / sqrt(2) cm, hips that only glide read none, and a slow drift of the height
+    (a ramp) is not a bob."""
+    n = 600
+    positions = np.zeros((n, J, 3))
+    positions[:, 0] = bobbing(n, speed=2.0)
+    assert hips_bob(positions) == pytest.approx(2.0 / np.sqrt(2.0), rel=0.02)
+    positions[:, 0, 1] = 100.0
+    assert hips_bob(positions) == 0.0
+    positions[:, 0, 1] = 100.0 + 0.05 * np.arange(n)  # 3 cm a second, slowly
+    assert hips_bob(positions) < 1e-9
+
+
 def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     """``apply`` on a whole clip equals ``amplitude_frames`` over several streams, one frame
     each per call (the daemon's tick), with different amplitudes and a fade."""
