@@ -21,7 +21,7 @@ from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler
 from stylecast.models.gait_amplitude import amplitudes
-from stylecast.models.pace import pace_points
+from stylecast.models.pace import SLOWEST_WALK, pace_points
 from stylecast.models.styles import STYLES, one_hot, parse_mix
 from stylecast.models.train_multistyle import train_multistyle
 from stylecast.motion.clock import FakeClock
@@ -191,7 +191,7 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # masculine walk faster, and a pace only slows (footlock.MAX_PACE_RATIO)
         walk = 109.8 / 60  # cm a frame, the normal walks' pace
         alice, bob = (s.feet.pace.ratio(walk) for s in daemon.sessions)
-        assert alice == pytest.approx(71.3 / 109.8) and bob == 1.0
+        assert alice == pytest.approx(SLOWEST_WALK) and bob == 1.0  # elderly walks: the slowest a walk is made
         # ...and its hips to its own style's (MultiStyleRestyler.quick_hips_of_style, by the
         # mix's weights): bob's mix is half masculine (all quick) and half active (half quick);
         # elderly asks for none

@@ -439,7 +439,7 @@ def test_a_foot_planted_through_the_lead_in_stands_at_the_restyled_stances_mean(
 
 
 def test_towards_elderly_a_swing_on_the_inputs_path_keeps_one_hump(bandai_root):
-    """The multistyle model made elderly (pace 0.65 in walks), a held-out walk through the
+    """The multistyle model made elderly (pace 0.82 in walks), a held-out walk through the
     stream: with its own lock (``path``) a free foot goes along the input's ankle path less
     its pace shift, so its speed keeps the input's one hump through each swing. The
     known-bad case, the restyled swing with the input lock: a lifting foot crosses the gap

@@ -12,7 +12,7 @@ import pytest
 
 from stylecast.models import data as D
 from stylecast.models.metrics import jerk, travel_speed, world_positions
-from stylecast.models.pace import PACES, measure_paces, pace_points
+from stylecast.models.pace import PACES, SLOWEST_WALK, measure_paces, pace_points
 from stylecast.motion.footlock import FEET, FootLock, Pace, leg_chain
 from stylecast.motion.words import planned_mix
 
@@ -30,8 +30,9 @@ def test_the_pace_table_is_what_the_training_clips_measure():
 
 def test_pace_points_map_the_source_speeds_onto_the_target_mix():
     assert all(a == b for a, b in pace_points("normal", {"normal": 1.0}))  # the same style: the same pace
-    slow = pace_points("normal", {"elderly": 1.0})
-    assert [b / a for a, b in slow] == pytest.approx([71.3 / 109.8, 147.2 / 281.4])
+    slow = pace_points("normal", {"elderly": 1.0})  # the walks at the slowest a walk is made
+    assert [b / a for a, b in slow] == pytest.approx([SLOWEST_WALK, 147.2 / 281.4])
+    assert [b / a for a, b in pace_points("normal", {"exhausted": 1.0})] == pytest.approx([103.7 / 109.8, 225.7 / 281.4])
     half = pace_points("normal", {"elderly": 0.5, "active": 0.5})
     assert [b for _, b in half] == pytest.approx([(71.3 + 142.4) / 120, (147.2 + 338.8) / 120])
     assert pace_points("normal", {"dancing": 1.0}) == () and pace_points("robot", {"normal": 1.0}) == ()
