@@ -22,7 +22,7 @@ import numpy as np
 
 from stylecast.motion.clock import OUTPUT_FPS as FPS  # the one definition of the frame rate
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import FEET
+from stylecast.motion.footlock import FEET, NO_AMPLITUDES
 from stylecast.motion.humanoid import HUMANOID_BONES, RETARGET_VERSION
 from stylecast.motion.words import WORD_LENGTH  # the one definition of a word's length
 
@@ -116,7 +116,7 @@ class Restyler:
         16.4-20.8, runs 6.7-12.7), and the style's gains on top of that read less exhausted:
         92.9 -> 87.3 % on the worst judge, FMD 13 -> 38x its floor (the model card, "Arm swing
         and hip bob"). ``weights`` as ``pace``'s."""
-        return {"arm_swing": (), "hips_bob": ()}
+        return dict(NO_AMPLITUDES)
 
     @property
     def styles(self) -> dict:

@@ -78,6 +78,19 @@ class _Table(NamedTuple):
                    eye[[h.flexion for h in hinges]], np.array([h.bent for h in hinges]),
                    np.array([[h.twists] for h in hinges]))
 
+    def bend(self, swing: np.ndarray) -> np.ndarray:
+        """Each hinge's flexion (..., H), radians, bent positive, from its swing (..., H, 3)."""
+        return self.bent * np.sum(swing * self.flexion, axis=-1)
+
+    def with_bend(self, swing: np.ndarray, bend: np.ndarray) -> np.ndarray:
+        """``swing`` with its flexion component set to ``bend`` (the sideways part kept)."""
+        return swing * (1.0 - self.flexion) + (self.bent * bend)[..., None] * self.flexion
+
+    def put(self, out: np.ndarray, q: np.ndarray, before: np.ndarray) -> None:
+        """Write the hinge bones' rotations ``q`` into ``out`` (..., J, 4), each in the
+        hemisphere of the one it replaces (``before``)."""
+        out[..., self.joints, :] = np.where(np.sum(q * before, axis=-1, keepdims=True) < 0, -q, q)
+
 
 _TABLE = _Table.of(HINGES)
 _ELBOWS = _Table.of(HINGES[:2])
@@ -127,21 +140,18 @@ def keep_hinges(inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
     before = out[..., table.joints, :]
     (swing_in, swing_out), (twist_in, twist_out) = _swing_twist(np.stack([inputs[..., table.joints, :], before]),
                                                                 table.axis)
-    bend_in = table.bent * np.sum(swing_in * table.flexion, axis=-1)
-    bend = eased_bend(bend_in, table.bent * np.sum(swing_out * table.flexion, axis=-1))
+    bend = eased_bend(table.bend(swing_in), table.bend(swing_out))
     # The sideways bend the input's, the flexion the restyle's (not past straight).
-    swing = swing_in * (1.0 - table.flexion) + (table.bent * bend)[..., None] * table.flexion
-    q = rot.multiply(rot.exp_map(swing), np.where(table.twists, twist_out, twist_in))
-    out[..., table.joints, :] = np.where(np.sum(q * before, axis=-1, keepdims=True) < 0, -q, q)
+    swing = table.with_bend(swing_in, bend)
+    table.put(out, rot.multiply(rot.exp_map(swing), np.where(table.twists, twist_out, twist_in)), before)
     return out
 
 
 def elbow_flexion(rotations: np.ndarray) -> np.ndarray:
     """Humanoid rotations (..., J, 4) -> each elbow's flexion (..., 2), radians, bent positive
     (left, right: ``HINGES``' order)."""
-    table = _ELBOWS
-    swing, _ = _swing_twist(np.asarray(rotations, np.float64)[..., table.joints, :], table.axis)
-    return table.bent * np.sum(swing * table.flexion, axis=-1)
+    swing, _ = _swing_twist(np.asarray(rotations, np.float64)[..., _ELBOWS.joints, :], _ELBOWS.axis)
+    return _ELBOWS.bend(swing)
 
 
 def add_elbow_flexion(outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
@@ -154,9 +164,7 @@ def add_elbow_flexion(outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
     out = np.array(outputs, dtype=np.float64)
     before = out[..., table.joints, :]
     swing, twist = _swing_twist(before, table.axis)
-    bend_out = table.bent * np.sum(swing * table.flexion, axis=-1)
+    bend_out = table.bend(swing)
     bend = np.maximum(bend_out + added, np.minimum(bend_out, 0.0))
-    swing = swing * (1.0 - table.flexion) + (table.bent * bend)[..., None] * table.flexion
-    q = rot.multiply(rot.exp_map(swing), twist)
-    out[..., table.joints, :] = np.where(np.sum(q * before, axis=-1, keepdims=True) < 0, -q, q)
+    table.put(out, rot.multiply(rot.exp_map(table.with_bend(swing, bend)), twist), before)
     return out

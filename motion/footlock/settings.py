@@ -208,11 +208,15 @@ def quick_hips_of(restyler, weights=None) -> float:
     return float(restyler.quick_hips(weights))
 
 
+# ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
+NO_AMPLITUDES = {"arm_swing": (), "hips_bob": ()}
+
+
 def amplitudes_of(restyler, weights=None) -> dict:
     """``ContactSettings.arm_swing`` and ``hips_bob``, by name, with ``restyler`` (towards the
     style mix ``weights``, where it takes one): () each for a restyler without them."""
     if not hasattr(restyler, "amplitudes"):
-        return {"arm_swing": (), "hips_bob": ()}
+        return dict(NO_AMPLITUDES)
     return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}
 
 
