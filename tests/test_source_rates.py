@@ -227,7 +227,11 @@ def test_a_sender_stamping_unix_time_is_timed_by_arrival_and_shown(caplog):
     s = daemon.sessions[0]
     assert not source.sender_time.trusted and "timing its frames by their arrival" in caplog.text
     assert len({f.index for f in frames}) >= 120  # of ~175 sent in 3 s, less the delay and the start
-    assert s.latency.percentile(50) < 0.1 and s.blender.late_frames == 0
+    # The delay (5 frames, 83 ms) plus where the sender's frames fall against the 60 Hz output
+    # clock, which the run does not choose: the median was 86-90 ms in most runs and
+    # 100.5-102.1 ms in 2 of 12 (both on the code before 2026-12-01 and after), one output
+    # frame later. So the bound is the delay, one frame of phase and 5 ms of scheduling.
+    assert s.latency.percentile(50) < 6 / 60 + 0.005 and s.blender.late_frames == 0
 
 
 def test_the_sender_time_is_kept_through_repeats_and_restarts_and_given_up_when_it_stands_still():
