@@ -753,6 +753,41 @@ def test_gait_statistics_read_a_known_gait_and_a_twisted_or_crossed_copy():
     assert M.hips_twist(M.hips_yaw(q), p) < 0.05
 
 
+def waving_hand(sway_cm: float, raised_cm: float = 20.0, facing_deg: float = 30.0, frames: int = 240):
+    """A standing take (``walking_gait`` without twist or swing) whose left hand is held
+    ``raised_cm`` over its elbow from the first to the last quarter of the take, swaying
+    ``sway_cm`` across the body at 3 Hz (a wave; whole cycles in the 1 s running mean) while it is up -> (rotations, positions)."""
+    q, p = walking_gait(frames=frames, twist_deg=0.0, swing_cm=0.0, facing_deg=facing_deg)
+    p[:, :, 2] = 0.0  # standing
+    yaw = np.radians(facing_deg)
+    across = np.array([np.cos(yaw), 0.0, -np.sin(yaw)])
+    up = np.zeros(frames, bool)
+    up[frames // 4: frames - frames // 4] = True
+    sway = np.where(up, sway_cm * np.sin(2 * np.pi * 3.0 * np.arange(frames) / 60.0), 0.0)
+    elbow, hand = HUMANOID_BONES.index("LeftLowerArm"), HUMANOID_BONES.index("LeftHand")
+    p[:, elbow] = p[:, 0] + 20 * across + [0.0, 40.0, 0.0]
+    p[:, hand] = p[:, elbow] + np.where(up, raised_cm, -raised_cm)[:, None] * [0.0, 1.0, 0.0] + sway[:, None] * across
+    return q, p
+
+
+def test_raised_hand_sway_reads_a_wave_and_not_a_still_raise_or_a_lowered_hand():
+    """A hand waved 8 cm across the body while raised sways 8 / sqrt 2 at any facing; held
+    still it sways nothing (a raise); the same sway with the hand below its elbow is no
+    raised hand's; a walk's hands are never raised."""
+    for facing in (0.0, 30.0, 170.0):
+        assert M.gait_statistics(*waving_hand(8.0, facing_deg=facing))["raised_hand_sway_cm"] == \
+            pytest.approx(8.0 / np.sqrt(2), rel=0.03)
+    assert M.gait_statistics(*waving_hand(0.0))["raised_hand_sway_cm"] == pytest.approx(0.0, abs=1e-9)
+    assert M.gait_statistics(*waving_hand(8.0, raised_cm=-5.0))["raised_hand_sway_cm"] == 0.0
+    assert M.gait_statistics(*walking_gait())["raised_hand_sway_cm"] == 0.0
+    # a damped wave reads outside a range of real waves, and is named
+    from stylecast.models.eval_measures import gait_outside
+
+    damped = M.gait_statistics(*waving_hand(4.0))
+    factor, name = gait_outside(damped, {"raised_hand_sway_cm": (6.5, 8.0)})
+    assert name == "raised_hand_sway_cm" and factor == pytest.approx(5.5 / (4.0 / np.sqrt(2)), rel=0.03)
+
+
 def test_gait_outside_the_real_range_fails_the_goal_and_names_the_statistic():
     """Inside every real take's range (widened by the tolerance, 1 degree or cm) reads 1;
     hips swung 1.5x past the most any real take swings, or feet crossed or 4 cm apart
@@ -819,6 +854,30 @@ def test_gait_statistics_tell_real_styles_apart_on_real_walks(bandai_root):
         factor, name = gait_outside(s, ranges)
         assert factor > 1.0 and name == "hips_twist_deg", (s, ranges)
         assert s["stance_width_cm"] > ranges["stance_width_cm"][1]  # wider too, within the tolerance
+
+
+def test_raised_hand_sway_tells_real_styles_apart_on_real_waves(bandai_root):
+    """On real Bandai waves of one hand: every feminine take, training or held out, sways
+    less than any normal take (feminine waves barely sway: the hand held at the shoulder),
+    and youthful waves sway more than normal ones on average."""
+    from stylecast.models.data import bandai_skeleton, files_for_style, list_files, load_motion
+
+    files = list_files(bandai_root / "dataset-2" / "data")
+    skeleton = bandai_skeleton(files)
+
+    def sways(style: str) -> list[float]:
+        out = []
+        for split in ("train", "val"):
+            for f in files_for_style(files, style, split):
+                if f.action == "wave-left-hand":
+                    m = load_motion(f)
+                    p = M.world_positions(m.rotations, m.root_positions, skeleton)
+                    out.append(M.raised_hand_sway(M.hips_yaw(m.rotations), p))
+        return out
+
+    feminine, normal, youthful = sways("feminine"), sways("normal"), sways("youthful")
+    assert max(feminine) < min(normal), (feminine, normal)
+    assert np.mean(youthful) > 1.2 * np.mean(normal), (youthful, normal)
 
 
 def test_real_walks_of_every_style_keep_one_hump_per_swing(bandai_root):
