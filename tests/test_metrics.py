@@ -876,25 +876,26 @@ def test_gait_statistics_tell_real_styles_apart_on_real_walks(bandai_root):
         assert s["stance_width_cm"] > ranges["stance_width_cm"][1]  # wider too, within the tolerance
 
 
-def test_arm_swing_across_tells_real_styles_apart_on_real_walks(bandai_root):
-    """On real Bandai walks, training and held out: every elderly walk swings its hands across
-    the body less than any active walk (0.6-1.3 against 7.1-10.7 cm in the training split)."""
+def real_statistic(bandai_root, read, action: str, *styles: str) -> list[list[float]]:
+    """``read`` (the hips' facing, positions -> a figure) of every real Bandai take of
+    ``action``, training and held out, one list per style of ``styles``."""
     from stylecast.models.data import bandai_skeleton, files_for_style, list_files, load_motion
 
     files = list_files(bandai_root / "dataset-2" / "data")
     skeleton = bandai_skeleton(files)
+    out = []
+    for style in styles:
+        motions = [load_motion(f) for split in ("train", "val") for f in files_for_style(files, style, split)
+                   if f.action == action]
+        out.append([read(M.hips_yaw(m.rotations), M.world_positions(m.rotations, m.root_positions, skeleton))
+                    for m in motions])
+    return out
 
-    def swings(style: str) -> list[float]:
-        out = []
-        for split in ("train", "val"):
-            for f in files_for_style(files, style, split):
-                if f.action == "walk":
-                    m = load_motion(f)
-                    out.append(M.arm_swing_across(M.hips_yaw(m.rotations),
-                                                  M.world_positions(m.rotations, m.root_positions, skeleton)))
-        return out
 
-    elderly, active = swings("elderly"), swings("active")
+def test_arm_swing_across_tells_real_styles_apart_on_real_walks(bandai_root):
+    """On real Bandai walks, training and held out: every elderly walk swings its hands across
+    the body less than any active walk (0.6-1.3 against 7.1-10.7 cm in the training split)."""
+    elderly, active = real_statistic(bandai_root, M.arm_swing_across, "walk", "elderly", "active")
     assert max(elderly) < min(active), (elderly, active)
 
 
@@ -902,22 +903,8 @@ def test_raised_hand_sway_tells_real_styles_apart_on_real_waves(bandai_root):
     """On real Bandai waves of one hand: every feminine take, training or held out, sways
     less than any normal take (feminine waves barely sway: the hand held at the shoulder),
     and youthful waves sway more than normal ones on average."""
-    from stylecast.models.data import bandai_skeleton, files_for_style, list_files, load_motion
-
-    files = list_files(bandai_root / "dataset-2" / "data")
-    skeleton = bandai_skeleton(files)
-
-    def sways(style: str) -> list[float]:
-        out = []
-        for split in ("train", "val"):
-            for f in files_for_style(files, style, split):
-                if f.action == "wave-left-hand":
-                    m = load_motion(f)
-                    p = M.world_positions(m.rotations, m.root_positions, skeleton)
-                    out.append(M.raised_hand_sway(M.hips_yaw(m.rotations), p))
-        return out
-
-    feminine, normal, youthful = sways("feminine"), sways("normal"), sways("youthful")
+    feminine, normal, youthful = real_statistic(bandai_root, M.raised_hand_sway, "wave-left-hand",
+                                                "feminine", "normal", "youthful")
     assert max(feminine) < min(normal), (feminine, normal)
     assert np.mean(youthful) > 1.2 * np.mean(normal), (youthful, normal)
 
