@@ -26,12 +26,12 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   no other measure here and no judge flagged (the multistyle model towards elderly: 18.6 cm).
 * gait statistics (``GAIT_STATISTICS``): a take's hips twist (how far the hips' facing
   swings about its one-second mean, degrees), stance width (the ankles' mean distance
-  apart across the hips' facing, signed so crossed feet count against it, cm) and arm
-  swing (how far the hands swing forward and back about their one-second mean, against the
-  hips, cm), the hands' swing across the body while they hang (cm) and a raised hand's sway
-  (how far a hand held over its elbow sways across the body about its one-second mean, cm:
-  a wave's, which a raise lacks), read against the range of real takes of the target style and the same action,
-  widened by each statistic's tolerance (``eval_measures.gait_outside``). Each is something
+  apart across the hips' facing, signed so crossed feet count against it, cm), arm swing
+  (how far the hands swing forward and back about their one-second mean, against the hips,
+  cm), arm swing across (the same across the body while the hands hang, cm) and a raised
+  hand's sway (how far a hand held over its elbow sways across the body about its
+  one-second mean, cm: a wave's, which a raise lacks), read against the range of real takes
+  of the target style and the same action, widened by each statistic's tolerance (``eval_measures.gait_outside``). Each is something
   a viewer sees and a judge may not weigh: the multistyle model towards active twisted
   held-out walks' hips 12.2 degrees, past every real active walk (5.4-8.7; the judges read
   70 % of those windows as turning walks), and its stance lock towards feminine planted

@@ -37,9 +37,9 @@ GOALS = (
     ("foot skating on the output's own contacts / input's, worst action (stricter than the issue)",
      "skate_ratio_worst_action", lambda v, m: v <= 1.5, "<= 1.5"),
     # Stricter than the issue (metrics.GAIT_STATISTICS): the hips' twist, the stance's width,
-    # the arms' swing forward and across and a raised hand's sway, each action's mean inside the range of every real take of the
-    # target style and that action (eval_measures.gait_outside: 1 inside). Absent from
-    # reports before it.
+    # the arms' swing forward and across and a raised hand's sway, each action's mean inside
+    # the range of every real take of the target style and that action
+    # (eval_measures.gait_outside: 1 inside). Absent from reports before it.
     ("gait statistics inside the real target takes' range, worst action (factor outside; stricter than the issue)",
      "gait_outside_worst_action", lambda v, m: v <= 1.0, "<= 1"),
     # Stricter than the issue (metrics.swing_dips): an ankle's speed keeps one hump through
@@ -350,10 +350,11 @@ def _gait_lines(m: dict) -> list[str]:
     lines = ["", f"## Gait statistics, stream: input / model under test [every real {m['target']} take of the action]",
              "", "Hips twist: the hips' facing about its 1 s running mean, standard deviation in degrees; stance width: "
              "the ankles' mean distance apart across the hips' facing (negative: crossed), cm; arm swing: the hands' "
-             "forward-and-back swing against the hips about their 1 s running mean, standard deviation in cm; arm swing "
-             "across: the same across the body while the hands hang (not raised), cm; raised hand sway: the across-the-body sway of a hand held over its elbow about its 1 s running mean, standard "
-             "deviation in cm, the busier hand's (a wave's; 0 without a raised hand) (`metrics.GAIT_STATISTICS`). A figure outside the brackets by more than its tolerance (1 degree or cm) "
-             "is in bold.", "",
+             "forward-and-back swing against the hips about their 1 s running mean, standard deviation in cm; "
+             "arm swing across: the same across the body while the hands hang (not raised), cm; raised hand sway: "
+             "the across-the-body sway of a hand held over its elbow about its 1 s running mean, standard "
+             "deviation in cm, the busier hand's (a wave's; 0 without a raised hand) (`metrics.GAIT_STATISTICS`). "
+             "A figure outside the brackets by more than its tolerance (1 degree or cm) is in bold.", "",
              "| action | " + " | ".join(next(iter(ranges.values()))) + " |", "|---|" + "---|" * len(next(iter(ranges.values())))]
     for a, r in ranges.items():
         if a not in per["proposed"]:  # no held-out take of the action restyled

@@ -732,7 +732,8 @@ def walking_gait(frames: int = 240, twist_deg: float = 6.0, width_cm: float = 12
     for name, side in (("LeftFoot", 1), ("RightFoot", -1)):
         p[:, HUMANOID_BONES.index(name)] = hips + side * width_cm / 2 * across - [0, 85, 0]
     for name, side in (("LeftHand", 1), ("RightHand", -1)):
-        p[:, HUMANOID_BONES.index(name)] = (hips + side * 20 * across + side * swing_cm * np.sin(phase)[:, None] * forward
+        p[:, HUMANOID_BONES.index(name)] = (hips + side * 20 * across
+                                            + side * swing_cm * np.sin(phase)[:, None] * forward
                                             + across_cm * np.sin(phase)[:, None] * across)
     return q, p
 
@@ -758,7 +759,8 @@ def test_gait_statistics_read_a_known_gait_and_a_twisted_or_crossed_copy():
 def waving_hand(sway_cm: float, raised_cm: float = 20.0, facing_deg: float = 30.0, frames: int = 240):
     """A standing take (``walking_gait`` without twist or swing) whose left hand is held
     ``raised_cm`` over its elbow from the first to the last quarter of the take, swaying
-    ``sway_cm`` across the body at 3 Hz (a wave; whole cycles in the 1 s running mean) while it is up -> (rotations, positions)."""
+    ``sway_cm`` across the body at 3 Hz (a wave; whole cycles in the 1 s running mean)
+    while it is up -> (rotations, positions)."""
     q, p = walking_gait(frames=frames, twist_deg=0.0, swing_cm=0.0, facing_deg=facing_deg)
     p[:, :, 2] -= p[:, :1, 2]  # standing
     yaw = np.radians(facing_deg)
