@@ -31,8 +31,9 @@ Positions are (T, J, 3) in centimetres at 60 fps from forward kinematics of the 
   cm), arm swing across (the same across the body while the hands hang, cm) and a raised
   hand's sway (how far a hand held over its elbow sways across the body about its
   one-second mean, cm: a wave's, which a raise lacks), read against the range of real takes
-  of the target style and the same action, widened by each statistic's tolerance (``eval_measures.gait_outside``). Each is something
-  a viewer sees and a judge may not weigh: the multistyle model towards active twisted
+  of the target style and the same action, widened by each statistic's tolerance
+  (``eval_measures.gait_outside``). Each is something a viewer sees and a judge may not
+  weigh: the multistyle model towards active twisted
   held-out walks' hips 12.2 degrees, past every real active walk (5.4-8.7; the judges read
   70 % of those windows as turning walks), and its stance lock towards feminine planted
   the walks' ankles 3.6 cm apart, crossing in 3-9 % of frames, where real feminine walks

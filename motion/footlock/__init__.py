@@ -39,7 +39,8 @@ from .settings import (AUTO_FEET, FEET, NO_AMPLITUDES, PACE_CHOICES, ContactSett
 from .solve import LockJob, kept_clearance, solve_lock_jobs
 from .stance import StanceOffset, stance_targets
 
-__all__ = ["AUTO_FEET", "FEET", "HIPS", "LEGS", "LEG_INDEX", "MAX_PACE_RATIO", "NO_AMPLITUDES", "PACE_CHOICES", "ContactSettings",
-           "FootLock", "GaitAmplitude", "LockJob", "Pace", "PelvisHeight", "StanceOffset", "amplitudes_of", "approach",
-           "check_feet", "check_pace", "feet_for", "kept_clearance", "knee_direction", "leg_chain", "lock_kernel", "pace_of", "plan_locks",
-           "push_frames", "quick_hips_of", "solve_legs", "solve_lock_jobs", "stance_targets"]
+__all__ = ["AUTO_FEET", "FEET", "HIPS", "LEGS", "LEG_INDEX", "MAX_PACE_RATIO", "NO_AMPLITUDES", "PACE_CHOICES",
+           "ContactSettings", "FootLock", "GaitAmplitude", "LockJob", "Pace", "PelvisHeight", "StanceOffset",
+           "amplitudes_of", "approach", "check_feet", "check_pace", "feet_for", "kept_clearance", "knee_direction",
+           "leg_chain", "lock_kernel", "pace_of", "plan_locks", "push_frames", "quick_hips_of", "solve_legs",
+           "solve_lock_jobs", "stance_targets"]
