@@ -50,6 +50,14 @@ HIPS_BOBS = {
     "youthful": (2.12, 3.56),
 }
 
+# The share of the output's swing of the hands across the body that the stream replaces with
+# a share of the input's (``footlock.GaitAmplitude``'s across part), (walks, runs); a style
+# not named keeps its own. Not read from the clips: real youthful walks swing across 1-1.6x
+# as far as the input, but the multistyle model's youthful walks with the input's across
+# swing (about the shoulders) still read as turns (the torso's own sway adds to it);
+# ``footlock.amplitude``'s ACROSS_INPUT_SHARE and the model card, "The arms' swing across".
+ARM_ACROSS_REPLACED = {"youthful": (1.0, 0.5)}
+
 
 def amplitude_points(table: Mapping[str, tuple[float, float]], source: str,
                      target: Mapping[str, float]) -> tuple[tuple[float, float], ...]:
@@ -66,10 +74,27 @@ def amplitude_points(table: Mapping[str, tuple[float, float]], source: str,
                  for speed, a, b in zip(PACES[source], table[source], out))
 
 
+def across_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float], ...]:
+    """``ContactSettings.arm_across`` for input of style ``source`` restyled towards the mix
+    ``target``: (input speed in cm a frame, the share of the output's across swing kept), at
+    the source's walking and running paces, each style of the mix replacing its
+    ``ARM_ACROSS_REPLACED`` share (none where not named); () where nothing is replaced or the
+    source's paces are not known."""
+    mix = {style: weight for style, weight in target.items() if weight > 0}
+    if source not in PACES or not mix:
+        return ()
+    replaced = sum(weight * np.asarray(ARM_ACROSS_REPLACED.get(style, (0.0, 0.0))) for style, weight in mix.items())
+    replaced = replaced / sum(mix.values())
+    if not replaced.any():
+        return ()
+    return tuple((float(speed) / OUTPUT_FPS, 1.0 - float(r)) for speed, r in zip(PACES[source], replaced))
+
+
 def amplitudes(source: str, target: Mapping[str, float]) -> dict:
-    """Both settings, by ``ContactSettings`` field name."""
+    """The three settings, by ``ContactSettings`` field name."""
     return {"arm_swing": amplitude_points(ARM_SWINGS, source, target),
-            "hips_bob": amplitude_points(HIPS_BOBS, source, target)}
+            "hips_bob": amplitude_points(HIPS_BOBS, source, target),
+            "arm_across": across_points(source, target)}
 
 
 def measure_arm_swings(files, cache_dir=None) -> dict[str, tuple[float, float]]:

@@ -111,9 +111,10 @@ def test_streaming_a_frame_at_a_time_equals_the_whole_clip(paced, sight, feet):
     settings = FEET[feet]
     mix = None
     if paced:  # gliding on at 0.3 cm a frame (slow enough to plant), slowed to 0.8 of it as the restyle fades in,
-        # with the arms' swing and the hips' bob scaled as well (``GaitAmplitude``)
+        # with the arms' swing, the hips' bob and the hands' swing across scaled as well (``GaitAmplitude``)
         roots = roots + np.outer(0.3 * np.arange(len(q)), [0.0, 0.0, 1.0])
-        settings = replace(settings, pace=((0.3, 0.24),), arm_swing=((0.3, 0.5),), hips_bob=((0.3, 0.6),))
+        settings = replace(settings, pace=((0.3, 0.24),), arm_swing=((0.3, 0.5),), hips_bob=((0.3, 0.6),),
+                           arm_across=((0.3, 0.0),))
         mix = np.clip((np.arange(len(q)) - 20) / 30.0, 0.0, 1.0)
     whole = FootLock(SK, ramp=4, settings=settings, sight=sight)
     whole.push(roots, q)
@@ -149,12 +150,15 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
     glide[100:, 2] = 5.0 * np.arange(100)
     performers = [(SK, ON_INPUT_ANKLES, roots, restyled(q)),
                   (SK.with_offsets(SK.offsets * 0.85), ON_INPUT_ANKLES, roots * [1, 0.85, 1], restyled(q, 20.0)),
-                  (SK.with_offsets(SK.offsets * 1.1), STANCE, roots * [1, 1.1, 1], restyled(q)),
+                  # the hands' swing across replaced, on a larger body gliding off
+                  (SK.with_offsets(SK.offsets * 1.1), replace(STANCE, arm_across=((2.0, 0.0),)), glide * [1, 1.1, 1],
+                   restyled(q)),
                   (SK, replace(ON_INPUT_ANKLES, pace=((2.0, 1.5),)), glide, crouched(q)),  # and a pace
                   (SK, OTHER_STANCE, roots, restyled(q, 20.0)),  # a stance of other settings beside the first
-                  # swings on the input's path, the arms' swing and the hips' bob scaled (``GaitAmplitude``)
+                  # swings on the input's path, the arms' swing, the hips' bob and the swing across
+                  # scaled (``GaitAmplitude``)
                   (SK, replace(ON_INPUT_PATH, pace=((2.0, 1.5),), arm_swing=((2.0, 0.5), (5.0, 1.5)),
-                               hips_bob=((2.0, 0.5),)), glide, restyled(q))]
+                               hips_bob=((2.0, 0.5),), arm_across=((2.0, 0.0), (5.0, 0.5))), glide, restyled(q))]
     together = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     alone = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     lifted = locked = 0
@@ -177,7 +181,8 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
         lifted += not np.array_equal(jobs[3].result, jobs[3].outputs) and not jobs[3].weights.any()
     assert locked > 300 and lifted > 10  # both the lock and the floor step were exercised
     assert np.ptp([lock.pace._shift[1] for lock in together]) > 10.0  # the pace held one body back
-    assert together[5].amplitude._moving == [True, True]  # the gait amplitude was exercised
+    assert together[5].amplitude._moving == [True, True, True]  # the gait amplitude was exercised
+    assert together[2].amplitude._moving == [False, False, True]
     assert [lock.locked_frames for lock in together] == [lock.locked_frames for lock in alone]
 
 

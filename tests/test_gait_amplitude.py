@@ -12,19 +12,21 @@ import numpy as np
 import pytest
 
 from stylecast.models import data as D
-from stylecast.models.gait_amplitude import (ARM_SWINGS, HIPS_BOBS, amplitude_points, amplitudes, measure_arm_swings,
-                                             measure_hips_bobs)
+from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWINGS, HIPS_BOBS, across_points,
+                                             amplitude_points, amplitudes, measure_arm_swings, measure_hips_bobs)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import FEET, FootLock, GaitAmplitude
-from stylecast.motion.footlock.amplitude import MAX_SWING_GAIN, SWING_INDEX, amplitude_frames
-from stylecast.motion.humanoid import HUMANOID_BONES
+from stylecast.motion.footlock.across import UPPER_ARM_INDEX, hand_across, move_across
+from stylecast.motion.footlock.amplitude import ACROSS_INPUT_SHARE, MAX_SWING_GAIN, SWING_INDEX, amplitude_frames
+from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 DATA = D.default_data_dir()
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"the shared Bandai data is not at {DATA}")
 J = len(HUMANOID_BONES)
 UPPER_ARM = HUMANOID_BONES.index("LeftUpperArm")
+SKELETON = humanoid_skeleton_default()
 
 
 @needs_data
@@ -52,6 +54,18 @@ def test_amplitude_points_give_the_target_mix_over_the_source_at_the_source_pace
     assert from_elderly[0] == pytest.approx((PACES["elderly"][0] / 60, 13.84 / 7.09))
     assert arm_swing_points("normal", {"dancing": 1.0}) == () and arm_swing_points("robot", {"normal": 1.0}) == ()
     assert amplitudes("normal", {"elderly": 1.0})["hips_bob"][0][1] == pytest.approx(0.69 / 1.28)
+
+
+def test_across_points_replace_the_named_styles_share_at_the_source_paces():
+    walks, runs = ARM_ACROSS_REPLACED["youthful"]
+    points = across_points("normal", {"youthful": 1.0})
+    assert np.asarray(points) == pytest.approx(np.array([[PACES["normal"][0] / 60, 1.0 - walks],
+                                                         [PACES["normal"][1] / 60, 1.0 - runs]]))
+    # a style not named keeps its own across swing; a mix replaces its share
+    assert across_points("normal", {"elderly": 1.0}) == ()
+    assert across_points("normal", {"youthful": 0.5, "elderly": 0.5})[0][1] == pytest.approx(1.0 - walks / 2)
+    assert across_points("robot", {"youthful": 1.0}) == ()  # a source of unknown paces: none
+    assert amplitudes("normal", {"youthful": 1.0})["arm_across"] == points
 
 
 def test_the_gain_is_one_at_rest_and_the_line_through_its_points():
@@ -120,6 +134,95 @@ def test_a_walking_stream_swings_its_arms_by_the_gain_and_a_standing_one_not_at_
     assert arms_of(GaitAmplitude(settings), still, q, q) is None
     # no swing set: nothing changes either
     assert arms_of(GaitAmplitude(FEET["input"]), roots, q, q) is None
+
+
+def hanging(n: int, speed: float, swing_deg: float = 20.0, seed: int = 0):
+    """A synthetic walk: roots moving ``speed`` cm a frame along +Z, every bone turned a
+    little from the rest pose, the upper arms hanging (the rest pose holds them out to the
+    side) and swinging forward and back at 1 Hz."""
+    rng = np.random.default_rng(seed)
+    base = rot.exp_map(rng.normal(0, 0.05, (J, 3)))
+    angle = np.radians(swing_deg) * np.sin(2 * np.pi * np.arange(n) / 60.0)
+    q = np.repeat(base[None], n, axis=0)
+    for side, j in zip((-1.0, 1.0), UPPER_ARM_INDEX):
+        hang = rot.exp_map(np.array([0.0, 0.0, side * np.radians(80.0)]))
+        q[:, j] = rot.multiply(rot.exp_map(np.outer(side * angle, [1.0, 0.0, 0.0])), rot.multiply(hang, base[j]))
+    return np.stack([np.zeros(n), np.full(n, 100.0), speed * np.arange(n)], axis=1), q
+
+
+def across_sway(q: np.ndarray, settled: slice = slice(180, None)) -> np.ndarray:
+    """cm, (left, right): each hand's across place against its shoulder, the standard
+    deviation about its 1 s running mean over ``settled``."""
+    from scipy.ndimage import uniform_filter1d
+
+    x = hand_across(q, SKELETON.offsets)
+    return (x - uniform_filter1d(x, 60, axis=0, mode="nearest"))[settled].std(axis=0)
+
+
+def test_hand_across_reads_the_metrics_axis_and_move_across_moves_the_hand_there():
+    """``hand_across`` is forward kinematics' hand against its shoulder joint, across the
+    hips' facing as ``models.metrics`` reads it; ``move_across`` moves each hand that far
+    across by the upper arm alone, the arm keeping its length."""
+    from stylecast.models.metrics import hips_yaw
+
+    roots, q = hanging(120, speed=2.0)
+    q[:, 0] = rot.multiply(rot.exp_map(np.outer(np.linspace(0, 3, 120), [0.0, 1.0, 0.0])), q[:, 0])  # turning
+    p = world_positions(q, roots, SKELETON)
+    yaw = hips_yaw(q)
+    for k, side in enumerate(("Left", "Right")):
+        rel = p[:, HUMANOID_BONES.index(f"{side}Hand")] - p[:, HUMANOID_BONES.index(f"{side}UpperArm")]
+        np.testing.assert_allclose(hand_across(q, SKELETON.offsets)[:, k],
+                                   np.cos(yaw) * rel[:, 0] - np.sin(yaw) * rel[:, 2], atol=1e-9)
+    shift = np.random.default_rng(1).uniform(-4.0, 4.0, (120, 2))
+    moved = move_across(q, SKELETON.offsets, shift)
+    got = hand_across(moved, SKELETON.offsets) - hand_across(q, SKELETON.offsets)
+    np.testing.assert_allclose(got, shift, atol=1e-9)
+    others = np.setdiff1d(np.arange(J), UPPER_ARM_INDEX)
+    np.testing.assert_array_equal(moved[:, others], q[:, others])
+    p_moved = world_positions(moved, roots, SKELETON)
+    for side in ("Left", "Right"):  # the arm keeps its length
+        hand, shoulder = HUMANOID_BONES.index(f"{side}Hand"), HUMANOID_BONES.index(f"{side}UpperArm")
+        np.testing.assert_allclose(np.linalg.norm(p_moved[:, hand] - p_moved[:, shoulder], axis=-1),
+                                   np.linalg.norm(p[:, hand] - p[:, shoulder], axis=-1), atol=1e-9)
+    np.testing.assert_allclose(move_across(q, SKELETON.offsets, np.zeros((120, 2))), q, atol=1e-12)
+
+
+def test_a_walking_stream_swings_its_hands_across_as_a_share_of_the_input_and_a_standing_one_not_at_all():
+    """A walk swinging its hands 4 cm across, restyled to swing them 6 cm more: with the
+    output's across swing replaced (kept share 0) each hand sits at the low-pass of the
+    restyled across place plus ACROSS_INPUT_SHARE of the input's swing about its own
+    low-pass; with half kept, about halfway; standing (a wave) and without points nothing
+    changes, and only the upper arms turn."""
+    from scipy.signal import lfilter, lfilter_zi
+
+    from stylecast.motion.smoothing import triple_pole
+
+    roots, straight = hanging(600, speed=2.0)
+    swing = np.outer(np.sin(2 * np.pi * np.arange(600) / 60.0), [1.0, -1.0])
+    q = move_across(straight, SKELETON.offsets, 4.0 * swing)
+    restyled = move_across(q, SKELETON.offsets, 6.0 * swing)
+    own, made = across_sway(q), across_sway(restyled)
+    assert np.all(own > 2.0) and np.all(made > own + 3.5)  # the instrument sees the added swing
+
+    def across_of(kept, r=roots):
+        amplitude = GaitAmplitude(replace(FEET["input"], arm_across=((2.0, kept),)))
+        return amplitude.apply(r, q, restyled, r[:, 1], None, SKELETON.offsets)[0]
+
+    b, a = triple_pole(FEET["input"].amplitude_tau)
+
+    def low_pass(x):
+        return lfilter(b, a, x, axis=0, zi=lfilter_zi(b, a)[:, None] * x[:1])[0]
+
+    into, out = hand_across(q, SKELETON.offsets), hand_across(restyled, SKELETON.offsets)
+    replaced = across_of(0.0)
+    np.testing.assert_allclose(hand_across(replaced, SKELETON.offsets),
+                               low_pass(out) + ACROSS_INPUT_SHARE * (into - low_pass(into)), atol=1e-6)
+    assert np.all(across_sway(replaced) < 0.5 * own)
+    assert np.all(np.abs(across_sway(across_of(0.5)) - (made + across_sway(replaced)) / 2) < 0.2 * made)
+    others = np.setdiff1d(np.arange(J), UPPER_ARM_INDEX)
+    np.testing.assert_array_equal(replaced[:, others], restyled[:, others])
+    assert across_of(1.0) is None
+    assert across_of(0.0, np.repeat(roots[:1], len(roots), axis=0)) is None
 
 
 def test_an_elbow_swings_by_the_gain_and_stays_a_hinge():
@@ -220,23 +323,25 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     each per call (the daemon's tick), with different amplitudes and a fade."""
     n = 240
     streams = [(bobbing(n, speed), swinging(n, speed, seed=k)[1]) for k, speed in enumerate((2.0, 5.0, 0.0, 2.0))]
-    settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips) for arms, hips in
-                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),)), (((2.0, 1.5),), ()), (((2.0, 0.5),), ((2.0, 2.0),)),
-                 ((), ()))]
+    settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips, arm_across=across) for arms, hips, across in
+                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),), ((2.0, 0.0),)), (((2.0, 1.5),), (), ((5.0, 0.5),)),
+                 (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8))), ((), (), ()))]
     mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n)]
     whole = []
     for setting, (r, q), m in zip(settings, streams, mixes):
-        swung, bobbed = GaitAmplitude(setting).apply(r, q, q, r[:, 1], m)
+        swung, bobbed = GaitAmplitude(setting).apply(r, q, q, r[:, 1], m, SKELETON.offsets)
         whole.append((q if swung is None else swung, r[:, 1] if bobbed is None else bobbed))
     live = [GaitAmplitude(s) for s in settings]
     for t in range(n):
         inputs = np.stack([q[t] for _, q in streams])
         outputs, heights = inputs.copy(), np.array([r[t, 1] for r, _ in streams])
-        amplitude_frames(live, np.stack([r[t] for r, _ in streams]), inputs, outputs, heights, [m[t] for m in mixes])
+        amplitude_frames(live, np.stack([r[t] for r, _ in streams]), inputs, outputs, heights, [m[t] for m in mixes],
+                         SKELETON.offsets)
         for k in range(len(streams)):
             np.testing.assert_allclose(outputs[k], whole[k][0][t], atol=1e-12)
             assert heights[k] == pytest.approx(whole[k][1][t], abs=1e-9)
     assert np.abs(whole[0][0] - streams[0][1]).max() > 0.01 and np.abs(whole[0][1] - streams[0][0][:, 1]).max() > 0.1
+    assert live[0]._moving[2] and live[1]._moving[2]  # the swing across was exercised (the third stands)
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

@@ -22,6 +22,7 @@ from stylecast.models.restyler_multistyle import code_and_intensity
 from stylecast.models.styles import READ, STYLES, one_hot
 from stylecast.motion import rotations as rot
 from stylecast.motion.errors import UserError
+from stylecast.motion.footlock import NO_AMPLITUDES
 from stylecast.motion.words import DEFAULT_HOP
 
 from .test_daemon import offline, run_daemon, walk_clip
@@ -80,9 +81,9 @@ def test_a_reading_of_elderly_serves_what_naming_elderly_serves(reads_elderly):
     as_performed = _served(IdentityRestyler())
     assert _largest_difference(_served(model, style="elderly", performer_style=READ), as_performed) < 1e-5
     assert _largest_difference(_served(model, style="elderly"), as_performed) > 1e-2  # the known-bad case
-    assert model.with_performer_style(READ).amplitudes() == {"arm_swing": (), "hips_bob": ()}
+    assert model.with_performer_style(READ).amplitudes() == NO_AMPLITUDES
     own_amplitudes = Restyler.load(reads_elderly)
-    own_amplitudes.amplitudes = lambda weights=None: {"arm_swing": (), "hips_bob": ()}  # kept by its copies
+    own_amplitudes.amplitudes = lambda weights=None: dict(NO_AMPLITUDES)  # kept by its copies
     named = _served(own_amplitudes, style="elderly:0.5,youthful:0.5", performer_style="elderly")
     read = _served(model, style="elderly:0.5,youthful:0.5", performer_style=READ)
     assert _largest_difference(read, named) < 1e-5

@@ -126,6 +126,10 @@ class ContactSettings:
     # second: a triple pole passes 15 % of a 1 Hz walk's swing into the mean, 8 % of a run's).
     arm_swing: tuple[tuple[float, float], ...] = ()
     hips_bob: tuple[tuple[float, float], ...] = ()
+    # ...and points (input speed, the share of the output's own swing of the hands across
+    # the body kept; the rest is replaced by a share of the input's: ``amplitude.py``'s
+    # ACROSS_INPUT_SHARE) for the styles whose own across swing reads as another action.
+    arm_across: tuple[tuple[float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -209,12 +213,13 @@ def quick_hips_of(restyler, weights=None) -> float:
 
 
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
-NO_AMPLITUDES = {"arm_swing": (), "hips_bob": ()}
+NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
-    """``ContactSettings.arm_swing`` and ``hips_bob``, by name, with ``restyler`` (towards the
-    style mix ``weights``, where it takes one): () each for a restyler without them."""
+    """``ContactSettings.arm_swing``, ``hips_bob`` and ``arm_across``, by name, with
+    ``restyler`` (towards the style mix ``weights``, where it takes one): () each for a
+    restyler without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)
     return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}

@@ -134,12 +134,13 @@ def _scale_amplitudes(rows: _Rows) -> None:
     if len(jobs) > 1 and len(rows.roots) == len(jobs):
         shown = [1.0 if job.mix is None else float(job.mix[0]) for job in jobs]
         heights = rows.new_roots[:, 1].copy()
-        amplitude_frames([job.lock.amplitude for job in jobs], rows.roots, rows.inputs, rows.result, heights, shown)
+        amplitude_frames([job.lock.amplitude for job in jobs], rows.roots, rows.inputs, rows.result, heights, shown,
+                         rows.offsets)
         rows.new_roots[:, 1] = heights
         return
     for job, (lo, hi) in zip(jobs, rows.spans):
         swung, bobbed = job.lock.amplitude.apply(job.roots, job.inputs, rows.result[lo:hi], rows.new_roots[lo:hi, 1],
-                                                 job.mix)
+                                                 job.mix, rows.offsets_of(slice(lo, hi)))
         if swung is not None:
             rows.result[lo:hi] = swung
         if bobbed is not None:
