@@ -329,16 +329,21 @@ def bench_footlock(model, motion, runs=5, performers=16):
     # style asks for (``pelvis_quick_share``: masculine's), two more low-passes a frame; and
     # the feet in the air on the input's path (``swing_path``: an IK for each free leg); and
     # the path with the elderly arm swing and hip bob (``GaitAmplitude``: the multistyle
-    # model's towards elderly), the path alone its baseline
+    # model's towards elderly), the path alone its baseline; and the stance with youthful's
+    # amplitudes, the hands' swing across replaced (two arms' forward kinematics and a turn
+    # of each upper arm a frame) against the same without it
     from stylecast.models.gait_amplitude import amplitudes
 
+    youthful = amplitudes("normal", {"youthful": 1.0})
     for feet, overrides, label in (("input", {}, "input"),
                                    ("path", {}, "path (elderly and exhausted)"),
                                    ("path", amplitudes("normal", {"elderly": 1.0}),
                                     "path, elderly arm swing and hip bob"),
                                    ("stance", {"stance_settle": False}, "stance, frozen (before)"),
                                    ("stance", {}, "stance"),
-                                   ("stance", {"pelvis_quick_share": 1.0}, "stance, quick hips (masculine)")):
+                                   ("stance", {"pelvis_quick_share": 1.0}, "stance, quick hips (masculine)"),
+                                   ("stance", {**youthful, "arm_across": ()}, "stance, youthful arm swing and hip bob"),
+                                   ("stance", youthful, "stance, youthful, the swing across too")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
             each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, overrides)
                                                        for _ in range(runs)]))
