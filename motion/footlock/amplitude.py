@@ -78,11 +78,12 @@ SWING_INDEX = [HUMANOID_BONES.index(name) for name in SWING_BONES]
 # (``ContactSettings.arm_across``): this share of the input's, about the shoulder joint. The
 # multistyle model towards youthful swung its held-out walks' hands 7.1 cm across against
 # the hips (real youthful walks 2.2-3.8, the input 2.3), and the judges took them for turns:
-# walks kept as walks 47.5 % on the worst judge of panel 0. The output's own across swing
-# replaced by the input's (1.0): 3.9 cm, 57.5 % (one judge fell from 87.5 to 57.5); by half
-# of it 2.8 cm, 72.5 %; by a quarter 2.3 cm, 77.5 %; by none 1.9 cm, 72.5 %; youthful read
-# in 97.8 % of those windows or more throughout (runs/s71/acrossfix.py, outside the repository;
-# the model card, "The arms' swing across").
+# walks kept as walks 47.5 % on the worst judge of panel 0. All of the output's own across
+# swing replaced offline (a diagnostic outside the repository): by the input's (1.0) 3.9 cm,
+# 57.5 % (one judge fell from 87.5 to 57.5); by half of it 2.8 cm, 72.5 %; by a quarter
+# 2.3 cm, 77.5 %; by none 1.9 cm, 72.5 %; youthful read in 97.8 % of those windows or more
+# throughout (the model card, "The arms' swing across"; how much is replaced is the style's:
+# ``models.gait_amplitude.ARM_ACROSS_REPLACED``).
 ACROSS_INPUT_SHARE = 0.25
 
 
