@@ -123,10 +123,11 @@ class GaitAmplitude:
         self._hips = _Gain(settings.hips_bob, settings.pace_tau, most=MAX_BOB_GAIN)
         # the across part's "gain" is the share of the output's own across swing kept
         self._across = _Gain(settings.arm_across, settings.pace_tau)
-        self._across_state: np.ndarray | None = None  # (3, 4): the low-pass of ``_across_signal``
         self._b, self._a = triple_pole(settings.amplitude_tau)
         self._settled = lfilter_zi(self._b, self._a)[:, None]  # the state per unit of a held input
-        self._arm_state: np.ndarray | None = None  # (3, CHANNELS): the low-pass of the input arms
+        # The low-passes' states, each (3, channels) once started: "arms" of the input arms
+        # (``_arm_signal``, CHANNELS), "across" of the hands' places (``_across_signal``, 4)
+        self._states: dict[str, np.ndarray | None] = {"arms": None, "across": None}
         self._last: np.ndarray | None = None  # (ARMS, 4): the input arms' last quaternions, sign-aligned
         self._height = TriplePole(settings.amplitude_tau)  # of the output root's height
         self._height_started = False
@@ -176,9 +177,7 @@ class GaitAmplitude:
             inputs = np.asarray(inputs, np.float64)
             arms = _arm_signal(inputs, self._aligned_to(inputs[0]))
             self._last = arms[-1, :ARMS * 4].reshape(ARMS, 4)
-            if self._arm_state is None:
-                self._arm_state = self._settled * arms[0]
-            mean, self._arm_state = lfilter(self._b, self._a, arms, axis=0, zi=self._arm_state)
+            mean = self._low_pass("arms", arms)
             if self._moving[0]:
                 swung = _swung(arms, mean, extra[:, 0], outputs)
         if hips_on:
@@ -198,10 +197,16 @@ class GaitAmplitude:
         """``apply``'s across part on a block: the outputs with the hands moved across, or
         None while it has nothing to move."""
         across = _across_signal(np.asarray(inputs, np.float64), outputs, offsets)
-        if self._across_state is None:
-            self._across_state = self._settled * across[0]
-        mean, self._across_state = lfilter(self._b, self._a, across, axis=0, zi=self._across_state)
+        mean = self._low_pass("across", across)
         return _moved_across(across, mean, extra, outputs, offsets) if self._moving[2] else None
+
+    def _low_pass(self, key: str, signal: np.ndarray) -> np.ndarray:
+        """The low-pass ``key`` run over a block's ``signal`` (n, channels), started settled
+        on its first frame."""
+        if self._states[key] is None:
+            self._states[key] = self._settled * signal[0]
+        mean, self._states[key] = lfilter(self._b, self._a, signal, axis=0, zi=self._states[key])
+        return mean
 
     def _aligned_to(self, first: np.ndarray) -> np.ndarray:
         """The upper arms' quaternions (ARMS, 4) the next frame's signs follow: the last
@@ -306,6 +311,20 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
                    extra, offsets)
 
 
+def _low_pass_streams(streams: list[GaitAmplitude], key: str, signal: np.ndarray) -> np.ndarray:
+    """One frame of each stream's low-pass ``key`` in one step: ``signal`` (A, channels), a
+    row per stream; each state starts settled on its stream's first frame. The streams share
+    one tau (``amplitude_tau``), so one filter steps them all."""
+    for g, row in zip(streams, signal):
+        if g._states[key] is None:
+            g._states[key] = g._settled * row
+    state = np.stack([g._states[key] for g in streams], axis=1)  # (3, A, channels)
+    mean, state = lfilter_one_step(streams[0]._b, streams[0]._a, signal, state)
+    for k, g in enumerate(streams):
+        g._states[key] = state[:, k]
+    return mean
+
+
 def _swing_frames(amplitudes, at, inputs, outputs, extra) -> None:
     """``amplitude_frames``' arms' swing for the streams ``at``."""
     if not at:
@@ -315,12 +334,7 @@ def _swing_frames(amplitudes, at, inputs, outputs, extra) -> None:
     arms = _arm_signal(frames, np.stack([g._aligned_to(q) for g, q in zip(swings, frames)]))  # (A, CHANNELS)
     for g, arm in zip(swings, arms):
         g._last = arm[:ARMS * 4].reshape(ARMS, 4)
-        if g._arm_state is None:
-            g._arm_state = g._settled * arm
-    state = np.stack([g._arm_state for g in swings], axis=1)  # (3, A, CHANNELS); the streams share one tau
-    mean, state = lfilter_one_step(swings[0]._b, swings[0]._a, arms, state)
-    for k, g in enumerate(swings):
-        g._arm_state = state[:, k]
+    mean = _low_pass_streams(swings, "arms", arms)
     rows = [i for i, g in enumerate(swings) if g._moving[0]]
     if rows:
         at_rows = [at[i] for i in rows]
@@ -334,13 +348,7 @@ def _across_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
     rows_offsets = offsets if offsets.ndim == 2 else offsets[at]
     crossing = [amplitudes[k] for k in at]
     across = _across_signal(inputs[at], outputs[at], rows_offsets)  # (A, 4)
-    for g, row in zip(crossing, across):
-        if g._across_state is None:
-            g._across_state = g._settled * row
-    state = np.stack([g._across_state for g in crossing], axis=1)  # (3, A, 4)
-    mean, state = lfilter_one_step(crossing[0]._b, crossing[0]._a, across, state)
-    for k, g in enumerate(crossing):
-        g._across_state = state[:, k]
+    mean = _low_pass_streams(crossing, "across", across)
     rows = [i for i, g in enumerate(crossing) if g._moving[2]]
     if rows:
         at_rows = [at[i] for i in rows]
