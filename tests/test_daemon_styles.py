@@ -162,6 +162,7 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         assert all(s.feet.settings == replace(FEET["stance"], pace=pace_points("normal", {"youthful": 1.0}),
                                               **amplitudes("normal", {"youthful": 1.0}))
                    for s in daemon.sessions)
+        assert all(s.feet.amplitude._across.on for s in daemon.sessions)  # youthful's swing across replaced
         accepted = daemon.control.counts["accepted"]
         client.sendto(osc("/stylecast/style", "elderly", "alice"), ("127.0.0.1", port))
         client.sendto(osc("/stylecast/mix", "active", 0.5, "masculine", 0.5, "bob"), ("127.0.0.1", port))
@@ -201,6 +202,8 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # hips would bob twice as much, and a bob only lessens (footlock MAX_BOB_GAIN)
         assert [s.feet.amplitude.gains(walk) for s in daemon.sessions] == pytest.approx(
             [(7.09 / 13.84, 0.69 / 1.28), ((16.25 + 13.90) / 2 / 13.84, 1.0)])
+        # ...and neither new mix replaces the hands' swing across, which youthful did
+        assert [s.feet.amplitude._across.on for s in daemon.sessions] == [False, False]
         assert any("unknown style 'sleepy'" in r.getMessage() and "youthful" in r.getMessage() for r in caplog.records)
         # The delivered words are the model's own answer for each row's mix.
         word = np.stack([walk_clip(60).rotations])
