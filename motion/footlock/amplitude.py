@@ -44,10 +44,10 @@ import numpy as np
 from scipy.signal import lfilter, lfilter_zi
 
 from .. import rotations as rot
-from .across import hand_across, move_across
 from ..hinges import add_elbow_flexion, elbow_flexion
 from ..humanoid import HUMANOID_BONES
 from ..smoothing import TriplePole, lfilter_one_step, triple_pole
+from .across import hand_across, move_across
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
 
