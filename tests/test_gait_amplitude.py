@@ -61,6 +61,9 @@ def test_across_points_replace_the_named_styles_share_at_the_source_paces():
     points = across_points("normal", {"youthful": 1.0})
     assert np.asarray(points) == pytest.approx(np.array([[PACES["normal"][0] / 60, 1.0 - walks],
                                                          [PACES["normal"][1] / 60, 1.0 - runs]]))
+    # walks and runs apart: a style may replace its runs' alone (the line between them ramps)
+    assert [kept for _, kept in across_points("normal", {"feminine": 1.0})] == pytest.approx(
+        [1.0 - share for share in ARM_ACROSS_REPLACED["feminine"]])
     # a style not named keeps its own across swing; a mix replaces its share
     assert across_points("normal", {"elderly": 1.0}) == ()
     assert across_points("normal", {"youthful": 0.5, "elderly": 0.5})[0][1] == pytest.approx(1.0 - walks / 2)
