@@ -19,6 +19,8 @@ shoulder joint, so the torso's own sway is not moved into the arm).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .. import rotations as rot
@@ -43,10 +45,23 @@ def _left_of_hips(rotations: np.ndarray) -> np.ndarray:
     return rot.cross(np.broadcast_to(UP, forward.shape), forward)
 
 
-def _arm_frames(rotations: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(n, J, 4) local rotations and offsets (J, 3) or per row (n, J, 3) -> each side's
-    shoulder bone's world rotation (n, 2, 4) (the upper arm's parent frame) and the hand
-    against the upper arm's joint in world axes (n, 2, 3)."""
+class ArmPlaces(NamedTuple):
+    """Where the arms of n frames are (``arm_places``): what reading a hand's place across
+    and moving it both need, found once."""
+
+    parent: np.ndarray  # (n, 2, 4): each shoulder bone's world rotation, the upper arm's parent frame
+    hand: np.ndarray  # (n, 2, 3): each hand against its upper arm's joint, world axes
+    left: np.ndarray  # (n, 1, 3): the level unit vector towards the humanoid's left (``_left_of_hips``)
+
+    def across(self) -> np.ndarray:
+        """(n, 2) cm: how far each hand (left, right) sits to the left of its shoulder joint."""
+        return np.sum(self.hand * self.left, axis=-1)
+
+
+def arm_places(rotations: np.ndarray, offsets: np.ndarray) -> ArmPlaces:
+    """(n, J, 4) local rotations and offsets (J, 3) or per row (n, J, 3) -> the arms'
+    ``ArmPlaces``, by forward kinematics from the hips."""
+    rotations = np.asarray(rotations, np.float64)
     torso = rotations[:, _TORSO[0]]
     for j in _TORSO[1:]:
         torso = rot.multiply(torso, rotations[:, j])
@@ -54,26 +69,24 @@ def _arm_frames(rotations: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray,
     upper = rot.multiply(parent, rotations[:, UPPER_ARM_INDEX])
     lower = rot.multiply(upper, rotations[:, LOWER_ARM_INDEX])
     hand = rot.apply(upper, offsets[..., LOWER_ARM_INDEX, :]) + rot.apply(lower, offsets[..., HAND_INDEX, :])
-    return parent, hand
+    return ArmPlaces(parent, hand, _left_of_hips(rotations)[:, None])
 
 
 def hand_across(rotations: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """(n, J, 4) local rotations, offsets (J, 3) or (n, J, 3) -> (n, 2) cm: how far each hand
     (left, right) sits towards the humanoid's left of its shoulder joint."""
-    rotations = np.asarray(rotations, np.float64)
-    _, hand = _arm_frames(rotations, offsets)
-    return np.sum(hand * _left_of_hips(rotations)[:, None], axis=-1)
+    return arm_places(rotations, offsets).across()
 
 
-def move_across(rotations: np.ndarray, offsets: np.ndarray, shift: np.ndarray) -> np.ndarray:
+def move_across(rotations: np.ndarray, offsets: np.ndarray, shift: np.ndarray,
+                places: ArmPlaces | None = None) -> np.ndarray:
     """(n, J, 4) local rotations -> a copy with each upper arm turned about its joint so its
     hand sits ``shift`` (n, 2) cm further to the left, the smallest such turn: the hand
     keeps its distance from the shoulder, so its level part square to "across" shrinks or
     grows to make room (within reach: at most to straight across); the other bones as
-    they were."""
+    they were. ``places``: these rotations' ``arm_places``, where the caller has them."""
     rotations = np.asarray(rotations, np.float64)
-    parent, hand = _arm_frames(rotations, offsets)
-    left = _left_of_hips(rotations)[:, None]
+    parent, hand, left = arm_places(rotations, offsets) if places is None else places
     across = np.sum(hand * left, axis=-1, keepdims=True)
     reach = np.linalg.norm(hand, axis=-1, keepdims=True)
     square = hand - across * left

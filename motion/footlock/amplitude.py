@@ -47,7 +47,7 @@ from .. import rotations as rot
 from ..hinges import add_elbow_flexion, elbow_flexion
 from ..humanoid import HUMANOID_BONES
 from ..smoothing import TriplePole, lfilter_one_step, triple_pole
-from .across import hand_across, move_across
+from .across import ArmPlaces, arm_places, move_across
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
 
@@ -196,9 +196,9 @@ class GaitAmplitude:
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
         """``apply``'s across part on a block: the outputs with the hands moved across, or
         None while it has nothing to move."""
-        across = _across_signal(np.asarray(inputs, np.float64), outputs, offsets)
+        across, places = _across_signal(inputs, outputs, offsets)
         mean = self._low_pass("across", across)
-        return _moved_across(across, mean, extra, outputs, offsets) if self._moving[2] else None
+        return _moved_across(across, mean, extra, outputs, offsets, places) if self._moving[2] else None
 
     def _low_pass(self, key: str, signal: np.ndarray) -> np.ndarray:
         """The low-pass ``key`` run over a block's ``signal`` (n, channels), started settled
@@ -272,20 +272,23 @@ def _swung(arms: np.ndarray, mean: np.ndarray, extra: np.ndarray, outputs: np.nd
     return add_elbow_flexion(out, extra[:, None] * (arms[:, ARMS * 4:] - mean[:, ARMS * 4:]))
 
 
-def _across_signal(inputs: np.ndarray, outputs: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+def _across_signal(inputs: np.ndarray, outputs: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, ArmPlaces]:
     """(n, 4) cm: each hand's place across the body against its shoulder joint
-    (``across.hand_across``), the input's (left, right) then the output's."""
-    return np.concatenate([hand_across(inputs, offsets), hand_across(outputs, offsets)], axis=1)
+    (``across.arm_places``), the input's (left, right) then the output's; and the output's
+    arm places, which moving its hands reads again."""
+    places = arm_places(outputs, offsets)
+    return np.concatenate([arm_places(inputs, offsets).across(), places.across()], axis=1), places
 
 
 def _moved_across(across: np.ndarray, mean: np.ndarray, extra: np.ndarray, outputs: np.ndarray,
-                  offsets: np.ndarray) -> np.ndarray:
+                  offsets: np.ndarray, places: ArmPlaces) -> np.ndarray:
     """The outputs (n, J, 4) with each hand moved across by ``extra`` (n,) (the across
     gain's kept share - 1, low-passed: -1 where all is replaced) times the output's across
-    swing less ACROSS_INPUT_SHARE of the input's, each about its low-pass ``mean`` (n, 4)."""
+    swing less ACROSS_INPUT_SHARE of the input's, each about its low-pass ``mean`` (n, 4);
+    ``places``: the outputs' arm places."""
     swing = across - mean
     shift = extra[:, None] * (swing[:, 2:] - ACROSS_INPUT_SHARE * swing[:, :2])
-    return move_across(outputs, offsets, shift)
+    return move_across(outputs, offsets, shift, places)
 
 
 def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,
@@ -347,10 +350,11 @@ def _across_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
         return
     rows_offsets = offsets if offsets.ndim == 2 else offsets[at]
     crossing = [amplitudes[k] for k in at]
-    across = _across_signal(inputs[at], outputs[at], rows_offsets)  # (A, 4)
+    across, places = _across_signal(inputs[at], outputs[at], rows_offsets)  # (A, 4)
     mean = _low_pass_streams(crossing, "across", across)
     rows = [i for i, g in enumerate(crossing) if g._moving[2]]
     if rows:
         at_rows = [at[i] for i in rows]
         outputs[at_rows] = _moved_across(across[rows], mean[rows], extra[at_rows, 2], outputs[at_rows],
-                                         rows_offsets if rows_offsets.ndim == 2 else rows_offsets[rows])
+                                         rows_offsets if rows_offsets.ndim == 2 else rows_offsets[rows],
+                                         ArmPlaces(*(part[rows] for part in places)))
