@@ -20,7 +20,7 @@ from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler
-from stylecast.models.gait_amplitude import amplitudes
+from stylecast.models.gait_amplitude import RAISED_SWAY_GAIN, amplitudes
 from stylecast.models.pace import SLOWEST_WALK, pace_points
 from stylecast.models.styles import STYLES, one_hot, parse_mix
 from stylecast.models.train_multistyle import train_multistyle
@@ -202,8 +202,11 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # hips would bob twice as much, and a bob only lessens (footlock MAX_BOB_GAIN)
         assert [s.feet.amplitude.gains(walk) for s in daemon.sessions] == pytest.approx(
             [(7.09 / 13.84, 0.69 / 1.28), ((16.25 + 13.90) / 2 / 13.84, 1.0)])
-        # ...and neither new mix replaces the hands' swing across, which youthful did
+        # ...and neither new mix replaces the hands' swing across, which youthful did; bob's
+        # raised hands sway by half active's gain for a raise (masculine keeps the restyle's)
         assert [s.feet.amplitude._across.on for s in daemon.sessions] == [False, False]
+        assert [s.feet.amplitude._raise.at(0.0) for s in daemon.sessions] == pytest.approx(
+            [1.0, (1.0 + RAISED_SWAY_GAIN["active"][1]) / 2])
         assert any("unknown style 'sleepy'" in r.getMessage() and "youthful" in r.getMessage() for r in caplog.records)
         # The delivered words are the model's own answer for each row's mix.
         word = np.stack([walk_clip(60).rotations])

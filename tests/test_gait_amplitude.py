@@ -12,14 +12,16 @@ import numpy as np
 import pytest
 
 from stylecast.models import data as D
-from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWINGS, HIPS_BOBS, across_points,
-                                             amplitude_points, amplitudes, measure_arm_swings, measure_hips_bobs)
+from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWINGS, HIPS_BOBS, RAISED_SWAY_GAIN,
+                                             across_points, amplitude_points, amplitudes, measure_arm_swings,
+                                             measure_hips_bobs, sway_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import FEET, FootLock, GaitAmplitude
-from stylecast.motion.footlock.across import UPPER_ARM_INDEX, hand_across, move_across
-from stylecast.motion.footlock.amplitude import ACROSS_INPUT_SHARE, MAX_SWING_GAIN, SWING_INDEX, amplitude_frames
+from stylecast.motion.footlock.across import LOWER_ARM_INDEX, UPPER_ARM_INDEX, arm_places, hand_across, move_across
+from stylecast.motion.footlock.amplitude import (ACROSS_INPUT_SHARE, MAX_SWING_GAIN, RAISED_GATE_CM, SWING_INDEX,
+                                                 WAVING_GATE_CM, amplitude_frames, smooth_step)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 
 DATA = D.default_data_dir()
@@ -228,6 +230,119 @@ def test_a_walking_stream_swings_its_hands_across_as_a_share_of_the_input_and_a_
     assert across_of(0.0, np.repeat(roots[:1], len(roots), axis=0)) is None
 
 
+def waving(n: int, speed: float = 0.0, sway_deg: float = 20.0, hz: float = 2.0, seed: int = 0):
+    """A synthetic wave of both hands: roots moving ``speed`` cm a frame along +Z, every bone
+    turned a little from the rest pose, each upper arm pointing forward and its forearm up
+    (the hand 25 cm over the elbow), tilting side to side by ``sway_deg`` at ``hz``."""
+    rng = np.random.default_rng(seed)
+    base = rot.exp_map(rng.normal(0, 0.05, (J, 3)))
+    tilt = np.radians(sway_deg) * np.sin(2 * np.pi * hz * np.arange(n) / 60.0)
+    q = np.repeat(base[None], n, axis=0)
+    for side, upper, lower in zip((1.0, -1.0), UPPER_ARM_INDEX, LOWER_ARM_INDEX):  # rest: +X (left) / -X (right)
+        q[:, upper] = rot.exp_map(np.array([0.0, -side * np.pi / 2, 0.0]))  # to +Z, forward
+        q[:, lower] = rot.multiply(rot.exp_map(np.outer(-side * tilt, [1.0, 0.0, 0.0])),
+                                   rot.exp_map(np.array([0.0, 0.0, side * np.pi / 2])))  # up, tilting across
+    return np.stack([np.zeros(n), np.full(n, 100.0), speed * np.arange(n)], axis=1), q
+
+
+def test_a_raised_hand_sways_across_by_the_waves_or_the_raises_gain_and_a_hanging_or_walking_one_not_at_all():
+    """A standing wave of both hands restyled to sway less, and a raise (the performer's
+    raised hands still) restyled to sway: each hand sits at the low-pass of its restyled
+    across place plus g times the restyle's sway about it (to first order: ``sway_turns``),
+    g the wave's gain where the performer waves (once its sway's low-pass has risen past
+    the gate) and the raise's where it does not; hanging hands standing, and the wave at the
+    walking pace, do not move; only the upper arms turn."""
+    from scipy.signal import lfilter, lfilter_zi
+
+    from stylecast.motion.smoothing import triple_pole
+
+    roots, q = waving(600, sway_deg=10.0)
+    performed, still = waving(600, sway_deg=20.0)[1], waving(600, sway_deg=0.0)[1]
+    assert np.all(arm_places(q, SKELETON.offsets).raised() > RAISED_GATE_CM[1])  # the hands are raised throughout
+
+    def swayed(wave, lift, r=roots, frames=q, inputs=performed):
+        amplitude = GaitAmplitude(replace(FEET["input"], wave_sway=((0.0, wave), (2.0, 1.0)),
+                                          raise_sway=((0.0, lift), (2.0, 1.0))))
+        return amplitude.apply(r, inputs, frames, r[:, 1], None, SKELETON.offsets)[0]
+
+    b, a = triple_pole(FEET["input"].amplitude_tau)
+    out = hand_across(q, SKELETON.offsets)
+    level = lfilter(b, a, out, axis=0, zi=lfilter_zi(b, a)[:, None] * out[:1])[0]
+    settled = slice(180, None)  # the performer's sway and the gain's low-pass past the gate (WAVING_GATE_CM)
+    wider = swayed(1.6, 0.5)
+    swing = np.abs(out - level).max()
+    np.testing.assert_allclose(hand_across(wider, SKELETON.offsets)[settled], (level + 1.6 * (out - level))[settled],
+                               atol=0.05 * swing)
+    assert np.all(across_sway(wider) > 1.4 * across_sway(q))  # the instrument sees it
+    raised = swayed(1.6, 0.5, inputs=still)  # a raise: the raise's gain
+    np.testing.assert_allclose(hand_across(raised, SKELETON.offsets)[settled], (level + 0.5 * (out - level))[settled],
+                               atol=0.05 * swing)
+    others = np.setdiff1d(np.arange(J), UPPER_ARM_INDEX)
+    np.testing.assert_array_equal(wider[:, others], q[:, others])
+    standing, hanging_arms = hanging(600, speed=0.0)
+    np.testing.assert_allclose(swayed(1.6, 0.5, standing, hanging_arms, hanging_arms), hanging_arms, atol=1e-12)
+    walking = np.stack([np.zeros(600), np.full(600, 100.0), 2.0 * np.arange(600)], axis=1)
+    np.testing.assert_allclose(swayed(1.6, 0.5, walking)[180:], q[180:], atol=1e-6)  # the gains eased to 1
+
+
+def test_a_sway_turn_moves_a_hand_across_to_first_order_and_never_further_than_asked():
+    """``sway_turns``: a hanging hand, or one raised straight up, moves across by the shift
+    to first order; in any pose, arms held nearly straight across or straight forward among
+    them, no hand moves further than the shift (where ``move_across``'s exact move swings a
+    hand held nearly straight across far square to it)."""
+    from stylecast.motion.footlock.across import sway_turns, turn_upper_arms
+
+    shift = np.full((1, 2), 2.0)
+    for pose in (hanging(1, 0.0)[1], waving(1)[1]):
+        places = arm_places(pose, SKELETON.offsets)
+        turned = turn_upper_arms(pose, places.parent, sway_turns(places, shift))
+        np.testing.assert_allclose(hand_across(turned, SKELETON.offsets) - places.across(), shift, rtol=0.05)
+    rng = np.random.default_rng(3)
+    poses = rot.exp_map(rng.normal(0.0, 1.2, (400, J, 3)))
+    poses[:200] = rot.identity((200, J))
+    for side, j, lower in zip((1.0, -1.0), UPPER_ARM_INDEX, LOWER_ARM_INDEX):
+        # arms held nearly straight across (1-5 degrees down) and straight forward
+        poses[:100, j] = rot.exp_map(np.outer(-side * np.radians(rng.uniform(1.0, 5.0, 100)), [0.0, 0.0, 1.0]))
+        poses[100:200, j] = rot.exp_map(np.tile([0.0, -side * np.pi / 2, 0.0], (100, 1)))
+        poses[:200, lower] = rot.identity((200,))
+    shifts = rng.uniform(-5.0, 5.0, (400, 2))
+    places = arm_places(poses, SKELETON.offsets)
+    turned = arm_places(turn_upper_arms(poses, places.parent, sway_turns(places, shifts)), SKELETON.offsets)
+    moved = np.linalg.norm(turned.hand - places.hand, axis=-1)
+    assert np.all(moved <= np.abs(shifts) * 1.001 + 1e-9)
+    assert np.all(moved[:100] < 0.2 * np.abs(shifts[:100]))  # held nearly straight across: hardly moved at all
+    straight = move_across(poses[:100], SKELETON.offsets, np.full((100, 2), -2.0))  # the exact move, for contrast
+    assert np.linalg.norm(arm_places(straight, SKELETON.offsets).hand - places.hand[:100], axis=-1).max() > 5.0
+
+
+def test_the_gates_are_smooth_steps():
+    for edges in (RAISED_GATE_CM, WAVING_GATE_CM):
+        low, high = edges
+        share = smooth_step(np.array([-20.0, low, (low + high) / 2, high, 30.0]), edges)
+        assert share == pytest.approx([0.0, 0.0, 0.5, 1.0, 1.0])
+        x = np.linspace(low - 1, high + 1, 2001)
+        steps = np.diff(smooth_step(x, edges))
+        assert np.all(steps >= 0) and np.abs(np.diff(steps)).max() < 1e-5  # no kink
+
+
+def test_sway_points_give_the_mix_gains_standing_and_one_at_the_source_walking_pace():
+    style = next(iter(RAISED_SWAY_GAIN))
+    wave, lift = RAISED_SWAY_GAIN[style]
+    for kind, gain in enumerate((wave, lift)):
+        points = sway_points("normal", {style: 1.0}, kind)
+        if gain == 1.0:  # the restyle's own
+            assert points == ()
+            continue
+        assert np.asarray(points) == pytest.approx(np.array([[0.0, gain], [PACES["normal"][0] / 60, 1.0]]))
+        assert sway_points("normal", {style: 0.5, "elderly": 0.5}, kind)[0][1] == pytest.approx((gain + 1.0) / 2)
+        amplitude = GaitAmplitude(replace(FEET["input"], raise_sway=points))
+        assert amplitude._raise.at(0.0) == pytest.approx(gain) and amplitude._raise.at(PACES["normal"][0] / 60) == 1.0
+    assert sway_points("normal", {"elderly": 1.0}, 1) == () and sway_points("robot", {style: 1.0}, 1) == ()
+    chosen = amplitudes("normal", {style: 1.0})
+    assert (chosen["wave_sway"], chosen["raise_sway"]) == (sway_points("normal", {style: 1.0}, 0),
+                                                          sway_points("normal", {style: 1.0}, 1))
+
+
 def test_an_elbow_swings_by_the_gain_and_stays_a_hinge():
     """An elbow (``motion.hinges``: it flexes about its Y) bending back and forth while
     walking: its flexion's swing is scaled by the gain about its mean, it bends sideways no
@@ -326,10 +441,15 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     each per call (the daemon's tick), with different amplitudes and a fade."""
     n = 240
     streams = [(bobbing(n, speed), swinging(n, speed, seed=k)[1]) for k, speed in enumerate((2.0, 5.0, 0.0, 2.0))]
-    settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips, arm_across=across) for arms, hips, across in
-                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),), ((2.0, 0.0),)), (((2.0, 1.5),), (), ((5.0, 0.5),)),
-                 (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8))), ((), (), ()))]
-    mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n)]
+    streams.append(waving(n))  # a standing wave, its raised hands' sway scaled
+    settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips, arm_across=across, wave_sway=wave,
+                        raise_sway=lift)
+                for arms, hips, across, wave, lift in
+                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),), ((2.0, 0.0),), (), ()),
+                 (((2.0, 1.5),), (), ((5.0, 0.5),), ((0.0, 1.5), (2.0, 1.0)), ()),
+                 (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8)), (), ()), ((), (), (), (), ()),
+                 ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0))))]
+    mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n), np.clip(np.arange(n) / 90.0, 0, 1)]
     whole = []
     for setting, (r, q), m in zip(settings, streams, mixes):
         swung, bobbed = GaitAmplitude(setting).apply(r, q, q, r[:, 1], m, SKELETON.offsets)
@@ -345,6 +465,7 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
             assert heights[k] == pytest.approx(whole[k][1][t], abs=1e-9)
     assert np.abs(whole[0][0] - streams[0][1]).max() > 0.01 and np.abs(whole[0][1] - streams[0][0][:, 1]).max() > 0.1
     assert live[0]._moving[2] and live[1]._moving[2]  # the swing across was exercised (the third stands)
+    assert live[4]._moving[3:] == [True, True] and np.abs(whole[4][0] - streams[4][1]).max() > 0.01  # and the sways
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

@@ -23,12 +23,17 @@ the pace, the stream takes the style's amplitudes:
 - the hands' swing across the body (``arm_across``, a style's choice, ``across``): each
   hand's place across the body against its shoulder joint, about its own low-pass, is
   replaced by ``ACROSS_INPUT_SHARE`` of the input's, by the share the style asks for, the
-  upper arm turned so the hand goes there (the arms' forward swing and bend stay).
+  upper arm turned so the hand goes there (the arms' forward swing and bend stay);
+- a raised hand's sway (``wave_sway``, ``raise_sway``, a style's choice): a hand held over
+  its elbow has the output's across motion about its low-pass scaled, the same way, by the
+  style's gain for a wave where the performer's own hand sways across (a wave), by its gain
+  for a raise where it does not; standing only (the gains' points fade them to 1 at the
+  source's walking pace).
 
 Each gain goes with the input's low-passed speed over ground (``ContactSettings.arm_swing``,
 ``hips_bob``: 1 standing, the walks' ratio at the source style's walking pace, the runs' at its
 running pace, straight lines between), so a wave or a raise (standing: the arms ARE the
-action) is left alone, and with the share of the restyle shown (none in pass-through or a
+action) is left alone but for its raised hands' sway, and with the share of the restyle shown (none in pass-through or a
 late word's fade); the gains are low-passed, so a new style or a fade never steps the body.
 
 Causal, state carried from block to block: a clip at once and a stream a frame at a time
@@ -47,7 +52,7 @@ from .. import rotations as rot
 from ..hinges import add_elbow_flexion, elbow_flexion
 from ..humanoid import HUMANOID_BONES
 from ..smoothing import TriplePole, lfilter_one_step, triple_pole
-from .across import ArmPlaces, arm_places, move_across
+from .across import ArmPlaces, arm_places, move_across, sway_turns, turn_upper_arms
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
 
@@ -85,6 +90,18 @@ SWING_INDEX = [HUMANOID_BONES.index(name) for name in SWING_BONES]
 # throughout (the model card, "The arms' swing across"; how much is replaced is the style's:
 # ``models.gait_amplitude.ARM_ACROSS_REPLACED``).
 ACROSS_INPUT_SHARE = 0.25
+# How far a hand sits over its elbow (cm, ``ArmPlaces.raised``) where its sway starts to be
+# scaled and where all of the gain applies (a smooth step between): the forearm up, as in
+# every real wave and raise (``models.metrics.RAISED_HAND_CM``, 10 cm, reads a wave so); a
+# hanging or swinging hand is never scaled.
+RAISED_GATE_CM = (5.0, 15.0)
+# How far the input's hand sways across about its low-pass (cm, the root of its square's
+# low-pass) where a raised hand starts to take the wave's gain rather than the raise's, and
+# where it takes all of it (a smooth step between): held-out normal waves sway 7.0-8.8 cm,
+# raises 0.6-0.9 (``metrics.raised_hand_sway``). The restyle's own sway cannot tell them
+# apart: towards youthful its raises sway 2.0-2.8 cm and its waves of both hands 4.9, and one
+# gain on both (1.6) made a third of the raises read as waves.
+WAVING_GATE_CM = (2.0, 4.0)
 
 
 class _Gain:
@@ -123,11 +140,15 @@ class GaitAmplitude:
         self._hips = _Gain(settings.hips_bob, settings.pace_tau, most=MAX_BOB_GAIN)
         # the across part's "gain" is the share of the output's own across swing kept
         self._across = _Gain(settings.arm_across, settings.pace_tau)
+        self._wave = _Gain(settings.wave_sway, settings.pace_tau)
+        self._raise = _Gain(settings.raise_sway, settings.pace_tau)
         self._b, self._a = triple_pole(settings.amplitude_tau)
         self._settled = lfilter_zi(self._b, self._a)[:, None]  # the state per unit of a held input
         # The low-passes' states, each (3, channels) once started: "arms" of the input arms
-        # (``_arm_signal``, CHANNELS), "across" of the hands' places (``_across_signal``, 4)
-        self._states: dict[str, np.ndarray | None] = {"arms": None, "across": None}
+        # (``_arm_signal``, CHANNELS), "across" of the hands' places (``_across_signal``, 4),
+        # "waving" of the input hands' across swing squared (2), "sway" of each hand's sway
+        # gain - 1 (2, ``_sway_extra``)
+        self._states: dict[str, np.ndarray | None] = {"arms": None, "across": None, "waving": None, "sway": None}
         self._last: np.ndarray | None = None  # (ARMS, 4): the input arms' last quaternions, sign-aligned
         self._height = TriplePole(settings.amplitude_tau)  # of the output root's height
         self._height_started = False
@@ -135,14 +156,17 @@ class GaitAmplitude:
         self._previous: tuple | None = None  # the last input root's (x, z)
         self._last_step = 0.0  # the input's last horizontal step that was not a teleport
         self._first_step = True  # the stream's first step is yet to come
-        self._moving = [False, False, False]  # arms, hips, across: any gain but 1 so far (else the work is skipped)
+        # arms, hips, across, wave, raise: any gain but 1 so far (else the work is skipped)
+        self._moving = [False] * len(self._gains)
 
-    def set_points(self, arm_swing=(), hips_bob=(), arm_across=()) -> None:
+    def set_points(self, arm_swing=(), hips_bob=(), arm_across=(), wave_sway=(), raise_sway=()) -> None:
         """New amplitudes (a new model, direction or style; () = the input's own), as
         (input speed cm/frame, gain) points; the gains move to them over the low-pass."""
         self._arms.set_points(arm_swing)
         self._hips.set_points(hips_bob)
         self._across.set_points(arm_across)
+        self._wave.set_points(wave_sway)
+        self._raise.set_points(raise_sway)
 
     def gains(self, speed: float) -> tuple[float, float]:
         """The arms' and the hips' gains at the input's speed ``speed`` (cm/frame): 1 at rest,
@@ -151,25 +175,26 @@ class GaitAmplitude:
         return self._arms.at(speed), self._hips.at(speed)
 
     @property
-    def active(self) -> tuple[bool, bool, bool]:
-        """Whether the arms', the hips' and the across parts have work: a gain set, or one
+    def active(self) -> tuple[bool, ...]:
+        """Whether the arms', the hips', the across, the wave's and the raise's parts have
+        work (``_gains``' order): a gain set, or one
         still easing back to 1. Their low-passes run only then (a session that never had a
         gain costs nothing but its speed), and start settled on the frame they start at."""
         return tuple(gain.on or moving for gain, moving in zip(self._gains, self._moving))
 
     @property
-    def _gains(self) -> tuple[_Gain, _Gain, _Gain]:
-        return self._arms, self._hips, self._across
+    def _gains(self) -> tuple[_Gain, ...]:
+        return self._arms, self._hips, self._across, self._wave, self._raise
 
     def apply(self, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, heights: np.ndarray,
               mix: np.ndarray | None = None, offsets: np.ndarray | None = None
               ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The next frames in order: input roots (n, 3), input and restyled rotations (n, J, 4),
         the output root's heights (n,), the share of the restyle shown (n,) (None: all of
-        it) and the bone offsets (J, 3) (needed with ``arm_across``) -> the outputs with the
+        it) and the bone offsets (J, 3) (needed with ``arm_across`` and the sways) -> the outputs with the
         arms' swing scaled (a new array) and the new heights, each None where nothing changes."""
         n = len(roots)
-        arms_on, hips_on, across_on = self.active
+        arms_on, hips_on, *crossing = self.active
         shown = [1.0] * n if mix is None else np.broadcast_to(mix, (n,)).tolist()
         extra = np.array([self._extras_of_frame(x, z, s) for (x, _, z), s in zip(np.asarray(roots).tolist(), shown)])
         swung = bobbed = None
@@ -188,17 +213,24 @@ class GaitAmplitude:
             level = self._height.run(heights)
             if self._moving[1]:
                 bobbed = level + (1.0 + extra[:, 1]) * (heights - level)
-        if across_on:
-            moved = self._across_block(inputs, outputs if swung is None else swung, extra[:, 2], offsets)
+        if any(crossing):
+            moved = self._across_block(inputs, outputs if swung is None else swung, extra[:, 2:], offsets)
             swung = swung if moved is None else moved
         return swung, bobbed
 
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
-        """``apply``'s across part on a block: the outputs with the hands moved across, or
-        None while it has nothing to move."""
+        """``apply``'s across and sway parts on a block: the outputs with the hands moved
+        across, or None while they have nothing to move."""
         across, places = _across_signal(inputs, outputs, offsets)
         mean = self._low_pass("across", across)
-        return _moved_across(across, mean, extra, outputs, offsets, places) if self._moving[2] else None
+        waving = self._low_pass("waving", _swing_squared(across, mean))
+        sway = self._low_pass("sway", _sway_extra(waving, extra, places))
+        return _moved_across(across, mean, sway, extra[:, 0], outputs, offsets, places) if self._crossing else None
+
+    @property
+    def _crossing(self) -> bool:
+        """Whether the across or a sway part moves the hands now."""
+        return any(self._moving[2:])
 
     def _low_pass(self, key: str, signal: np.ndarray) -> np.ndarray:
         """The low-pass ``key`` run over a block's ``signal`` (n, channels), started settled
@@ -280,15 +312,49 @@ def _across_signal(inputs: np.ndarray, outputs: np.ndarray, offsets: np.ndarray)
     return np.concatenate([arm_places(inputs, offsets).across(), places.across()], axis=1), places
 
 
-def _moved_across(across: np.ndarray, mean: np.ndarray, extra: np.ndarray, outputs: np.ndarray,
-                  offsets: np.ndarray, places: ArmPlaces) -> np.ndarray:
-    """The outputs (n, J, 4) with each hand moved across by ``extra`` (n,) (the across
-    gain's kept share - 1, low-passed: -1 where all is replaced) times the output's across
-    swing less ACROSS_INPUT_SHARE of the input's, each about its low-pass ``mean`` (n, 4);
-    ``places``: the outputs' arm places."""
+def _swing_squared(across: np.ndarray, mean: np.ndarray) -> np.ndarray:
+    """(n, 2): the input hands' across swing about its low-pass, squared (what "waving"
+    low-passes)."""
+    return (across[:, :2] - mean[:, :2]) ** 2
+
+
+def _sway_extra(waving: np.ndarray, extra: np.ndarray, places: ArmPlaces) -> np.ndarray:
+    """(n, 2): each hand's sway gain - 1 before its low-pass: the wave's and the raise's
+    (``extra`` (n, 3): the across, wave and raise gains - 1) mixed by how far the input hand
+    waves (``waving``, its swing's low-passed square, over WAVING_GATE_CM), where the output
+    hand is raised (over RAISED_GATE_CM). Low-passed after, because a hand comes down in a
+    few frames while it still swings far across: the gate alone took 13 cm off a lowering
+    hand in 3 frames (the multistyle model's raises towards active, one frame's jerk 21x the
+    input's)."""
+    if not extra[:, 1:].any():
+        return np.zeros((len(extra), 2))
+    wave = smooth_step(np.sqrt(waving), WAVING_GATE_CM)
+    gain = extra[:, 1:2] * wave + extra[:, 2:3] * (1.0 - wave)
+    return gain * smooth_step(places.raised(), RAISED_GATE_CM)
+
+
+def _moved_across(across: np.ndarray, mean: np.ndarray, sway: np.ndarray, extra: np.ndarray,
+                  outputs: np.ndarray, offsets: np.ndarray, places: ArmPlaces) -> np.ndarray:
+    """The outputs (n, J, 4) with each hand moved across: ``extra`` (n,), the across gain's
+    kept share - 1 (low-passed: -1 where all is replaced), times the output's across swing
+    less ACROSS_INPUT_SHARE of the input's (``move_across``, exact); and ``sway`` (n, 2),
+    each hand's sway gain - 1 (``_sway_extra``, low-passed), times the output's across swing
+    (``sway_turns``: to first order, and never more than that far, where a raise's lowering
+    passes straight across); each swing about its low-pass ``mean`` (n, 4); ``places``: the
+    outputs' arm places."""
     swing = across - mean
-    shift = extra[:, None] * (swing[:, 2:] - ACROSS_INPUT_SHARE * swing[:, :2])
-    return move_across(outputs, offsets, shift, places)
+    moved = move_across(outputs, offsets, extra[:, None] * (swing[:, 2:] - ACROSS_INPUT_SHARE * swing[:, :2]), places)
+    if not sway.any():
+        return moved
+    return turn_upper_arms(moved, places.parent, sway_turns(places, sway * swing[:, 2:]))
+
+
+def smooth_step(x: np.ndarray, edges: tuple[float, float]) -> np.ndarray:
+    """0 up to ``edges[0]``, 1 from ``edges[1]``, a smooth step between (no kink, so a hand
+    going up, or starting to wave, takes no jerk of the gates' own)."""
+    low, high = edges
+    x = np.clip((x - low) / (high - low), 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
 
 
 def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,
@@ -296,11 +362,11 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
     """One frame of each of many streams (the daemon's tick): input roots (P, 3), input and
     restyled rotations (P, J, 4) and output root heights (P,) (``outputs`` and ``heights``
     changed in place), the share shown of each and the bone offsets, (J, 3) or each
-    stream's (P, J, 3) (needed with ``arm_across``); the same as each ``apply``, the arms of
+    stream's (P, J, 3) (needed with ``arm_across`` and the sways); the same as each ``apply``, the arms of
     all in one vectorised pass (per stream, numpy's per-call cost would be most of it)."""
     active = [g.active for g in amplitudes]
     extra = np.array([g._extras_of_frame(x, z, f) for g, (x, _, z), f in zip(amplitudes, roots.tolist(), shown)])
-    for k, (g, (_, hips_on, _)) in enumerate(zip(amplitudes, active)):
+    for k, (g, (_, hips_on, *_)) in enumerate(zip(amplitudes, active)):
         if hips_on:  # a scalar each: Python floats
             height = float(heights[k])
             if not g._height_started:
@@ -309,8 +375,8 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
             level = g._height.step(height)
             if g._moving[1]:
                 heights[k] = level + (1.0 + extra[k, 1]) * (height - level)
-    _swing_frames(amplitudes, [k for k, (arms_on, _, _) in enumerate(active) if arms_on], inputs, outputs, extra)
-    _across_frames(amplitudes, [k for k, (_, _, across_on) in enumerate(active) if across_on], inputs, outputs,
+    _swing_frames(amplitudes, [k for k, (arms_on, *_) in enumerate(active) if arms_on], inputs, outputs, extra)
+    _across_frames(amplitudes, [k for k, (_, _, *crossing) in enumerate(active) if any(crossing)], inputs, outputs,
                    extra, offsets)
 
 
@@ -345,16 +411,18 @@ def _swing_frames(amplitudes, at, inputs, outputs, extra) -> None:
 
 
 def _across_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
-    """``amplitude_frames``' swing across for the streams ``at``, after their arms' swing."""
+    """``amplitude_frames``' swing across and sways for the streams ``at``, after their arms' swing."""
     if not at:
         return
     rows_offsets = offsets if offsets.ndim == 2 else offsets[at]
     crossing = [amplitudes[k] for k in at]
     across, places = _across_signal(inputs[at], outputs[at], rows_offsets)  # (A, 4)
     mean = _low_pass_streams(crossing, "across", across)
-    rows = [i for i, g in enumerate(crossing) if g._moving[2]]
+    waving = _low_pass_streams(crossing, "waving", _swing_squared(across, mean))
+    sway = _low_pass_streams(crossing, "sway", _sway_extra(waving, extra[at, 2:], places))
+    rows = [i for i, g in enumerate(crossing) if g._crossing]
     if rows:
         at_rows = [at[i] for i in rows]
-        outputs[at_rows] = _moved_across(across[rows], mean[rows], extra[at_rows, 2], outputs[at_rows],
+        outputs[at_rows] = _moved_across(across[rows], mean[rows], sway[rows], extra[at_rows, 2], outputs[at_rows],
                                          rows_offsets if rows_offsets.ndim == 2 else rows_offsets[rows],
                                          ArmPlaces(*(part[rows] for part in places)))

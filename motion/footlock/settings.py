@@ -130,6 +130,13 @@ class ContactSettings:
     # the body kept; the rest is replaced by a share of the input's: ``amplitude.py``'s
     # ACROSS_INPUT_SHARE) for the styles whose own across swing reads as another action.
     arm_across: tuple[tuple[float, float], ...] = ()
+    # ...and points (input speed, gain) of a raised hand's sway across the body: the part of
+    # a hand's across place above its low-pass scaled, for a hand held over its elbow, by the
+    # styles whose waves (``wave_sway``: where the performer's hand sways) or raises
+    # (``raise_sway``: where it does not) sway further or less than the restyle's; the first
+    # point is at speed 0 (standing), so they fade out as the performer walks.
+    wave_sway: tuple[tuple[float, float], ...] = ()
+    raise_sway: tuple[tuple[float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -213,11 +220,11 @@ def quick_hips_of(restyler, weights=None) -> float:
 
 
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
-NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": ()}
+NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
-    """``ContactSettings.arm_swing``, ``hips_bob`` and ``arm_across``, by name, with
+    """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway`` and ``raise_sway``, by name, with
     ``restyler`` (towards the style mix ``weights``, where it takes one): () each for a
     restyler without them."""
     if not hasattr(restyler, "amplitudes"):
