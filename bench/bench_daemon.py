@@ -331,11 +331,12 @@ def bench_footlock(model, motion, runs=5, performers=16):
     # the path with the elderly arm swing and hip bob (``GaitAmplitude``: the multistyle
     # model's towards elderly), the path alone its baseline; and the stance with youthful's
     # amplitudes, the hands' swing across replaced (two arms' forward kinematics and a turn
-    # of each upper arm a frame) against the same without it, and with the raised hands' sway
-    # (the same pass, on the walk gated off by the pace but paid for)
+    # of each upper arm a frame) against the same without it; and active's with its raises'
+    # sway (the hands' places and three more low-passes a frame; on the walk the pace gates
+    # it off, but it is paid for) against the same without it
     from stylecast.models.gait_amplitude import amplitudes
 
-    youthful = amplitudes("normal", {"youthful": 1.0})
+    youthful, active = (amplitudes("normal", {style: 1.0}) for style in ("youthful", "active"))
     for feet, overrides, label in (("input", {}, "input"),
                                    ("path", {}, "path (elderly and exhausted)"),
                                    ("path", amplitudes("normal", {"elderly": 1.0}),
@@ -343,10 +344,10 @@ def bench_footlock(model, motion, runs=5, performers=16):
                                    ("stance", {"stance_settle": False}, "stance, frozen (before)"),
                                    ("stance", {}, "stance"),
                                    ("stance", {"pelvis_quick_share": 1.0}, "stance, quick hips (masculine)"),
-                                   ("stance", {**youthful, "arm_across": (), "arm_sway": ()},
-                                    "stance, youthful arm swing and hip bob"),
-                                   ("stance", {**youthful, "arm_sway": ()}, "stance, youthful, the swing across too"),
-                                   ("stance", youthful, "stance, youthful, and the raised hands' sway")):
+                                   ("stance", {**youthful, "arm_across": ()}, "stance, youthful arm swing and hip bob"),
+                                   ("stance", youthful, "stance, youthful, the swing across too"),
+                                   ("stance", {**active, "raise_sway": ()}, "stance, active arm swing and hip bob"),
+                                   ("stance", active, "stance, active, the raises' sway too")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
             each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, overrides)
                                                        for _ in range(runs)]))
