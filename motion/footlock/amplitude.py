@@ -33,8 +33,9 @@ the pace, the stream takes the style's amplitudes:
 Each gain goes with the input's low-passed speed over ground (``ContactSettings.arm_swing``,
 ``hips_bob``: 1 standing, the walks' ratio at the source style's walking pace, the runs' at its
 running pace, straight lines between), so a wave or a raise (standing: the arms ARE the
-action) is left alone but for its raised hands' sway, and with the share of the restyle shown (none in pass-through or a
-late word's fade); the gains are low-passed, so a new style or a fade never steps the body.
+action) is left alone but for its raised hands' sway, and with the share of the restyle
+shown (none in pass-through or a late word's fade); the gains are low-passed, so a new style
+or a fade never steps the body.
 
 Causal, state carried from block to block: a clip at once and a stream a frame at a time
 give the same frames (``amplitude_frames`` is the daemon's tick, all performers in one pass).
@@ -191,8 +192,9 @@ class GaitAmplitude:
               ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The next frames in order: input roots (n, 3), input and restyled rotations (n, J, 4),
         the output root's heights (n,), the share of the restyle shown (n,) (None: all of
-        it) and the bone offsets (J, 3) (needed with ``arm_across`` and the sways) -> the outputs with the
-        arms' swing scaled (a new array) and the new heights, each None where nothing changes."""
+        it) and the bone offsets (J, 3) (needed with ``arm_across`` and the sways) -> the
+        outputs with the arms' swing scaled (a new array) and the new heights, each None
+        where nothing changes."""
         n = len(roots)
         arms_on, hips_on, *crossing = self.active
         shown = [1.0] * n if mix is None else np.broadcast_to(mix, (n,)).tolist()
@@ -219,18 +221,21 @@ class GaitAmplitude:
         return swung, bobbed
 
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
-        """``apply``'s across and sway parts on a block: the outputs with the hands moved
-        across, or None while they have nothing to move."""
+        """``apply``'s across and sway parts on a block (``extra`` (n, 3): their gains - 1):
+        the outputs with the hands moved, or None while neither has anything to move."""
         across, places = _across_signal(inputs, outputs, offsets)
-        mean = self._low_pass("across", across)
-        waving = self._low_pass("waving", _swing_squared(across, mean))
-        sway = self._low_pass("sway", _sway_extra(waving, extra, places))
-        return _moved_across(across, mean, sway, extra[:, 0], outputs, offsets, places) if self._crossing else None
+        swing = across - self._low_pass("across", across)
+        moved = _moved_across(swing, extra[:, 0], outputs, offsets, places) if self._moving[2] else None
+        if self._swaying:
+            sway = self._low_pass("sway", _sway_extra(self._low_pass("waving", swing[:, :2] ** 2), extra, places))
+            if self._moving[3] or self._moving[4]:
+                moved = _swayed(outputs if moved is None else moved, swing, sway, places)
+        return moved
 
     @property
-    def _crossing(self) -> bool:
-        """Whether the across or a sway part moves the hands now."""
-        return any(self._moving[2:])
+    def _swaying(self) -> bool:
+        """Whether a sway part (the wave's, the raise's) has work: its low-passes run."""
+        return self.active[3] or self.active[4]
 
     def _low_pass(self, key: str, signal: np.ndarray) -> np.ndarray:
         """The low-pass ``key`` run over a block's ``signal`` (n, channels), started settled
@@ -312,17 +317,11 @@ def _across_signal(inputs: np.ndarray, outputs: np.ndarray, offsets: np.ndarray)
     return np.concatenate([arm_places(inputs, offsets).across(), places.across()], axis=1), places
 
 
-def _swing_squared(across: np.ndarray, mean: np.ndarray) -> np.ndarray:
-    """(n, 2): the input hands' across swing about its low-pass, squared (what "waving"
-    low-passes)."""
-    return (across[:, :2] - mean[:, :2]) ** 2
-
-
 def _sway_extra(waving: np.ndarray, extra: np.ndarray, places: ArmPlaces) -> np.ndarray:
     """(n, 2): each hand's sway gain - 1 before its low-pass: the wave's and the raise's
     (``extra`` (n, 3): the across, wave and raise gains - 1) mixed by how far the input hand
-    waves (``waving``, its swing's low-passed square, over WAVING_GATE_CM), where the output
-    hand is raised (over RAISED_GATE_CM). Low-passed after, because a hand comes down in a
+    waves (``waving``, the low-passed square of its across swing, over WAVING_GATE_CM), where
+    the output hand is raised (over RAISED_GATE_CM). Low-passed after, because a hand comes down in a
     few frames while it still swings far across: the gate alone took 13 cm off a lowering
     hand in 3 frames (the multistyle model's raises towards active, one frame's jerk 21x the
     input's)."""
@@ -333,20 +332,21 @@ def _sway_extra(waving: np.ndarray, extra: np.ndarray, places: ArmPlaces) -> np.
     return gain * smooth_step(places.raised(), RAISED_GATE_CM)
 
 
-def _moved_across(across: np.ndarray, mean: np.ndarray, sway: np.ndarray, extra: np.ndarray,
-                  outputs: np.ndarray, offsets: np.ndarray, places: ArmPlaces) -> np.ndarray:
-    """The outputs (n, J, 4) with each hand moved across: ``extra`` (n,), the across gain's
-    kept share - 1 (low-passed: -1 where all is replaced), times the output's across swing
-    less ACROSS_INPUT_SHARE of the input's (``move_across``, exact); and ``sway`` (n, 2),
-    each hand's sway gain - 1 (``_sway_extra``, low-passed), times the output's across swing
-    (``sway_turns``: to first order, and never more than that far, where a raise's lowering
-    passes straight across); each swing about its low-pass ``mean`` (n, 4); ``places``: the
-    outputs' arm places."""
-    swing = across - mean
-    moved = move_across(outputs, offsets, extra[:, None] * (swing[:, 2:] - ACROSS_INPUT_SHARE * swing[:, :2]), places)
-    if not sway.any():
-        return moved
-    return turn_upper_arms(moved, places.parent, sway_turns(places, sway * swing[:, 2:]))
+def _moved_across(swing: np.ndarray, extra: np.ndarray, outputs: np.ndarray, offsets: np.ndarray,
+                  places: ArmPlaces) -> np.ndarray:
+    """The outputs (n, J, 4) with each hand moved across by ``extra`` (n,) (the across gain's
+    kept share - 1, low-passed: -1 where all is replaced) times the output's across swing
+    less ACROSS_INPUT_SHARE of the input's, each about its low-pass (``swing`` (n, 4), the
+    input's then the output's); ``places``: the outputs' arm places."""
+    return move_across(outputs, offsets, extra[:, None] * (swing[:, 2:] - ACROSS_INPUT_SHARE * swing[:, :2]), places)
+
+
+def _swayed(outputs: np.ndarray, swing: np.ndarray, sway: np.ndarray, places: ArmPlaces) -> np.ndarray:
+    """The outputs (n, J, 4) with each hand moved across by ``sway`` (n, 2) (its sway gain -
+    1, ``_sway_extra`` low-passed) times the output's across swing (``swing`` as
+    ``_moved_across``'s), by ``sway_turns`` (to first order, and never further: a raise's
+    lowering passes straight across); ``places``: the restyled arms' places."""
+    return turn_upper_arms(outputs, places.parent, sway_turns(places, sway * swing[:, 2:]))
 
 
 def smooth_step(x: np.ndarray, edges: tuple[float, float]) -> np.ndarray:
@@ -362,8 +362,9 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
     """One frame of each of many streams (the daemon's tick): input roots (P, 3), input and
     restyled rotations (P, J, 4) and output root heights (P,) (``outputs`` and ``heights``
     changed in place), the share shown of each and the bone offsets, (J, 3) or each
-    stream's (P, J, 3) (needed with ``arm_across`` and the sways); the same as each ``apply``, the arms of
-    all in one vectorised pass (per stream, numpy's per-call cost would be most of it)."""
+    stream's (P, J, 3) (needed with ``arm_across`` and the sways); the same as each
+    ``apply``, the arms of all in one vectorised pass (per stream, numpy's per-call cost
+    would be most of it)."""
     active = [g.active for g in amplitudes]
     extra = np.array([g._extras_of_frame(x, z, f) for g, (x, _, z), f in zip(amplitudes, roots.tolist(), shown)])
     for k, (g, (_, hips_on, *_)) in enumerate(zip(amplitudes, active)):
@@ -417,12 +418,21 @@ def _across_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
     rows_offsets = offsets if offsets.ndim == 2 else offsets[at]
     crossing = [amplitudes[k] for k in at]
     across, places = _across_signal(inputs[at], outputs[at], rows_offsets)  # (A, 4)
-    mean = _low_pass_streams(crossing, "across", across)
-    waving = _low_pass_streams(crossing, "waving", _swing_squared(across, mean))
-    sway = _low_pass_streams(crossing, "sway", _sway_extra(waving, extra[at, 2:], places))
-    rows = [i for i, g in enumerate(crossing) if g._crossing]
+    swing = across - _low_pass_streams(crossing, "across", across)
+    rows = [i for i, g in enumerate(crossing) if g._moving[2]]
     if rows:
         at_rows = [at[i] for i in rows]
-        outputs[at_rows] = _moved_across(across[rows], mean[rows], sway[rows], extra[at_rows, 2], outputs[at_rows],
+        outputs[at_rows] = _moved_across(swing[rows], extra[at_rows, 2], outputs[at_rows],
                                          rows_offsets if rows_offsets.ndim == 2 else rows_offsets[rows],
                                          ArmPlaces(*(part[rows] for part in places)))
+    swaying = [i for i, g in enumerate(crossing) if g._swaying]
+    if swaying:  # their low-passes, and the move where a gain has been set
+        streams, at_rows = [crossing[i] for i in swaying], [at[i] for i in swaying]
+        their = ArmPlaces(*(part[swaying] for part in places))
+        waving = _low_pass_streams(streams, "waving", swing[swaying, :2] ** 2)
+        sway = _low_pass_streams(streams, "sway", _sway_extra(waving, extra[at_rows, 2:], their))
+        moving = [k for k, g in enumerate(streams) if g._moving[3] or g._moving[4]]
+        if moving:
+            rows = [at_rows[k] for k in moving]
+            outputs[rows] = _swayed(outputs[rows], swing[swaying][moving], sway[moving],
+                                    ArmPlaces(*(part[moving] for part in their)))
