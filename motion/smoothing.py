@@ -32,6 +32,15 @@ from . import rotations as rot
 CORRECTION_TAU = 2.0  # frames; measured: hop 4 jerk ratio 2.0 -> 1.05 (see models/checkpoints/MODEL_CARD.md)
 
 
+def smoothstep(x: np.ndarray, low: float = 0.0, high: float = 1.0) -> np.ndarray:
+    """0 up to ``low``, 1 from ``high``, 3t^2 - 2t^3 between (t the way from one to the
+    other): a step with no kink at either end, so what it weighs moves in and out with zero
+    slope (the foot lock's contacts and weights, the gait amplitude's gates, the tracker
+    solver's holds)."""
+    t = np.clip((np.asarray(x) - low) / (high - low), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
 def triple_pole(tau: float) -> tuple[np.ndarray, np.ndarray]:
     """lfilter's (b, a) of three cascaded one-pole low-passes of time constant ``tau``
     frames, unity gain at rest: (gain / (1 - pole z^-1))^3 as one recursion."""

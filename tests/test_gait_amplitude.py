@@ -21,8 +21,9 @@ from stylecast.motion import rotations as rot
 from stylecast.motion.footlock import FEET, FootLock, GaitAmplitude
 from stylecast.motion.footlock.across import LOWER_ARM_INDEX, UPPER_ARM_INDEX, arm_places, hand_across, move_across
 from stylecast.motion.footlock.amplitude import (ACROSS_INPUT_SHARE, MAX_SWING_GAIN, RAISED_GATE_CM, SWING_INDEX,
-                                                 WAVING_GATE_CM, amplitude_frames, smooth_step)
+                                                 WAVING_GATE_CM, amplitude_frames)
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
+from stylecast.motion.smoothing import smoothstep
 
 DATA = D.default_data_dir()
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"the shared Bandai data is not at {DATA}")
@@ -318,10 +319,10 @@ def test_a_sway_turn_moves_a_hand_across_to_first_order_and_never_further_than_a
 def test_the_gates_are_smooth_steps():
     for edges in (RAISED_GATE_CM, WAVING_GATE_CM):
         low, high = edges
-        share = smooth_step(np.array([-20.0, low, (low + high) / 2, high, 30.0]), edges)
+        share = smoothstep(np.array([-20.0, low, (low + high) / 2, high, 30.0]), *edges)
         assert share == pytest.approx([0.0, 0.0, 0.5, 1.0, 1.0])
         x = np.linspace(low - 1, high + 1, 2001)
-        steps = np.diff(smooth_step(x, edges))
+        steps = np.diff(smoothstep(x, *edges))
         assert np.all(steps >= 0) and np.abs(np.diff(steps)).max() < 1e-5  # no kink
 
 

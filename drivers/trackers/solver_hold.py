@@ -18,7 +18,8 @@ from stylecast.motion import rotations as rot
 
 from stylecast.drivers.trackers.solver_body import N_ROLES, B, R
 from stylecast.drivers.trackers.solver_calibration import Calibration
-from stylecast.drivers.trackers.solver_math import _rotate, _smoothstep, _swing
+from stylecast.drivers.trackers.solver_math import _rotate, _swing
+from stylecast.motion.smoothing import smoothstep
 
 
 def _relative(hp, hq, p, q):
@@ -163,7 +164,7 @@ class _HoldBlend:
             w = np.arange(g1, nxt)
             w = w[blending[w]]
             if len(w):  # coming back: from the held pose to the live one, relative to the hips
-                a = _smoothstep((ts[w] - ret[w]) / self.blend_time)
+                a = smoothstep((ts[w] - ret[w]) / self.blend_time)
                 lp, lq = _relative(out_p[w, W], out_q[w, W], live_p[w, role], live_q[w, role])
                 rp = self.held_p[role] + a[:, None] * (lp - self.held_p[role])
                 rq = rot.slerp(np.broadcast_to(self.held_q[role], lq.shape), lq, a)
@@ -193,7 +194,7 @@ class _HoldBlend:
             self.waist_mode = m
             sl = slice(t0, t1)
             ep, eq = self._estimate(m, sl, live_p, live_q)
-            a = np.where(v[sl], _smoothstep((ts[sl] - ret[sl]) / self.blend_time), 0.0)
+            a = np.where(v[sl], smoothstep((ts[sl] - ret[sl]) / self.blend_time), 0.0)
             out_p[sl, W] = ep + a[:, None] * (live_p[sl, W] - ep)
             out_q[sl, W] = rot.slerp(eq, live_q[sl, W], a)
             live[sl, W] = a

@@ -419,6 +419,3 @@ def _qmean(q: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     return rot.IDENTITY.copy() if n < 1e-12 else m / n
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)

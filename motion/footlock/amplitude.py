@@ -52,7 +52,7 @@ from scipy.signal import lfilter, lfilter_zi
 from .. import rotations as rot
 from ..hinges import add_elbow_flexion, elbow_flexion
 from ..humanoid import HUMANOID_BONES
-from ..smoothing import TriplePole, lfilter_one_step, triple_pole
+from ..smoothing import TriplePole, lfilter_one_step, smoothstep, triple_pole
 from .across import ArmPlaces, arm_places, move_across, sway_turns, turn_upper_arms
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
@@ -235,7 +235,7 @@ class GaitAmplitude:
     @property
     def _swaying(self) -> bool:
         """Whether a sway part (the wave's, the raise's) has work: its low-passes run."""
-        return self.active[3] or self.active[4]
+        return any(gain.on or moving for gain, moving in zip((self._wave, self._raise), self._moving[3:]))
 
     def _low_pass(self, key: str, signal: np.ndarray) -> np.ndarray:
         """The low-pass ``key`` run over a block's ``signal`` (n, channels), started settled
@@ -327,9 +327,9 @@ def _sway_extra(waving: np.ndarray, extra: np.ndarray, places: ArmPlaces) -> np.
     input's)."""
     if not extra[:, 1:].any():
         return np.zeros((len(extra), 2))
-    wave = smooth_step(np.sqrt(waving), WAVING_GATE_CM)
+    wave = smoothstep(np.sqrt(waving), *WAVING_GATE_CM)
     gain = extra[:, 1:2] * wave + extra[:, 2:3] * (1.0 - wave)
-    return gain * smooth_step(places.raised(), RAISED_GATE_CM)
+    return gain * smoothstep(places.raised(), *RAISED_GATE_CM)
 
 
 def _moved_across(swing: np.ndarray, extra: np.ndarray, outputs: np.ndarray, offsets: np.ndarray,
@@ -347,14 +347,6 @@ def _swayed(outputs: np.ndarray, swing: np.ndarray, sway: np.ndarray, places: Ar
     ``_moved_across``'s), by ``sway_turns`` (to first order, and never further: a raise's
     lowering passes straight across); ``places``: the restyled arms' places."""
     return turn_upper_arms(outputs, places.parent, sway_turns(places, sway * swing[:, 2:]))
-
-
-def smooth_step(x: np.ndarray, edges: tuple[float, float]) -> np.ndarray:
-    """0 up to ``edges[0]``, 1 from ``edges[1]``, a smooth step between (no kink, so a hand
-    going up, or starting to wave, takes no jerk of the gates' own)."""
-    low, high = edges
-    x = np.clip((x - low) / (high - low), 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
 
 
 def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..smoothing import smoothstep
+
 # A foot's coming down to a contact (``approach``), for a lock that sees fewer frames ahead
 # than its ramp: cm a frame from which a foot is not coming down (before the contact test
 # plants it at 0.6, a walk's foot slows through 1.2-2.0 over its last six frames, a run's
@@ -81,7 +83,7 @@ def lock_kernel(ramp: int, release: int, back: int) -> np.ndarray:
     linear = np.zeros(back + ramp + 1)
     linear[back - release:back] = 1.0 - np.arange(release, 0, -1) / (release + 1)  # a contact that has ended
     linear[back:] = 1.0 - np.arange(ramp + 1) / (ramp + 1)  # a contact to come
-    return linear * linear * (3.0 - 2.0 * linear)
+    return smoothstep(linear)
 
 
 def lock_weights(windows: np.ndarray, kernel: np.ndarray, back: int) -> np.ndarray:
@@ -135,7 +137,7 @@ def approach(rows: np.ndarray, moved: np.ndarray, ankle_rest, plant_height, plan
     speed = np.linalg.norm(np.diff(feet, axis=1), axis=-1).min(axis=2)  # (m, frame, foot)
     slow = np.clip((APPROACH_SPEED - speed) / (APPROACH_SPEED - plant_speed), 0.0, 1.0)
     low = np.clip((release_height - height) / (release_height - plant_height), 0.0, 1.0)
-    near = np.where(moved[..., None], _smoothstep(slow) * _smoothstep(low), np.nan)  # (m, frame, foot)
+    near = np.where(moved[..., None], smoothstep(slow) * smoothstep(low), np.nan)  # (m, frame, foot)
     # Slew-limited over the frames read, from the first with a step (NaN: none yet)
     slewed = near[:, 0]
     for frame in near.transpose(1, 0, 2)[1:]:
@@ -144,8 +146,6 @@ def approach(rows: np.ndarray, moved: np.ndarray, ankle_rest, plant_height, plan
     return np.nan_to_num(slewed, nan=0.0)
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    return x * x * (3.0 - 2.0 * x)
 
 
 def feet_down(windows: np.ndarray, ramp: int) -> np.ndarray:
