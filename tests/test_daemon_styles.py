@@ -20,7 +20,7 @@ from stylecast.daemon.restylers import IdentityRestyler, StandInRestyler
 from stylecast.drivers.bvh.bvh_replay import ReplaySource
 from stylecast.models.restyler import Restyler
 from stylecast.models.restyler_multistyle import MultiStyleRestyler
-from stylecast.models.gait_amplitude import RAISED_SWAY_GAIN, amplitudes
+from stylecast.models.gait_amplitude import ARM_SWING_TRIM, RAISED_SWAY_GAIN, amplitudes
 from stylecast.models.pace import SLOWEST_WALK, pace_points
 from stylecast.models.styles import STYLES, one_hot, parse_mix
 from stylecast.models.train_multistyle import train_multistyle
@@ -198,10 +198,12 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # elderly asks for none
         assert [s.feet.pelvis.quick_share for s in daemon.sessions] == [0.0, 0.75]
         # ...and its arms swing and hips bob as its own style's (models/gait_amplitude.py):
-        # alice's walks half as far, bob's arms half active's and half masculine's; his
-        # hips would bob twice as much, and a bob only lessens (footlock MAX_BOB_GAIN)
+        # alice's walks half as far, bob's arms half active's and half masculine's (trimmed,
+        # ARM_SWING_TRIM); his hips would bob twice as much, and a bob only lessens
+        # (footlock MAX_BOB_GAIN)
+        trimmed = ARM_SWING_TRIM["masculine"][0] * 13.90
         assert [s.feet.amplitude.gains(walk) for s in daemon.sessions] == pytest.approx(
-            [(7.09 / 13.84, 0.69 / 1.28), ((16.25 + 13.90) / 2 / 13.84, 1.0)])
+            [(7.09 / 13.84, 0.69 / 1.28), ((16.25 + trimmed) / 2 / 13.84, 1.0)])
         # ...and neither new mix replaces the hands' swing across, which youthful did; bob's
         # raised hands sway by half active's gain for a raise (masculine keeps the restyle's)
         assert [s.feet.amplitude._across.on for s in daemon.sessions] == [False, False]

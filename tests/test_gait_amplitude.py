@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from stylecast.models import data as D
-from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWINGS, HIPS_BOBS, RAISED_SWAY_GAIN,
-                                             across_points, amplitude_points, amplitudes, measure_arm_swings,
+from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWING_TRIM, ARM_SWINGS, HIPS_BOBS,
+                                             RAISED_SWAY_GAIN, across_points, amplitude_points, amplitudes, measure_arm_swings,
                                              measure_hips_bobs, sway_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
@@ -57,6 +57,20 @@ def test_amplitude_points_give_the_target_mix_over_the_source_at_the_source_pace
     assert from_elderly[0] == pytest.approx((PACES["elderly"][0] / 60, 13.84 / 7.09))
     assert arm_swing_points("normal", {"dancing": 1.0}) == () and arm_swing_points("robot", {"normal": 1.0}) == ()
     assert amplitudes("normal", {"elderly": 1.0})["hips_bob"][0][1] == pytest.approx(0.69 / 1.28)
+
+
+def test_a_trimmed_style_swings_its_trimmed_share_as_the_target_and_only_then():
+    style = next(iter(ARM_SWING_TRIM))
+    walks, runs = ARM_SWING_TRIM[style]
+    points = amplitudes("normal", {style: 1.0})["arm_swing"]
+    assert [g for _, g in points] == pytest.approx([walks * ARM_SWINGS[style][0] / ARM_SWINGS["normal"][0],
+                                                   runs * ARM_SWINGS[style][1] / ARM_SWINGS["normal"][1]])
+    assert points[0][1] < arm_swing_points("normal", {style: 1.0})[0][1]  # the trim is used
+    # a mix trims its share; a trimmed performer's own swing is what it measures
+    half = amplitudes("normal", {style: 0.5, "normal": 0.5})["arm_swing"][0][1]
+    assert half == pytest.approx((walks * ARM_SWINGS[style][0] + ARM_SWINGS["normal"][0]) / 2 / ARM_SWINGS["normal"][0])
+    assert amplitudes(style, {"normal": 1.0})["arm_swing"] == arm_swing_points(style, {"normal": 1.0})
+    assert amplitudes(style, {style: 1.0})["arm_swing"][0][1] == pytest.approx(walks)
 
 
 def test_across_points_replace_the_named_styles_share_at_the_source_paces():
