@@ -13,8 +13,8 @@ import pytest
 
 from stylecast.models import data as D
 from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWING_TRIM, ARM_SWINGS, HIPS_BOBS,
-                                             RAISED_SWAY_GAIN, across_points, amplitude_points, amplitudes, measure_arm_swings,
-                                             measure_hips_bobs, sway_points)
+                                             RAISED_SWAY_GAIN, across_points, amplitude_points, amplitudes,
+                                             measure_arm_swings, measure_hips_bobs, sway_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
