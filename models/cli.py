@@ -121,13 +121,15 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
 
 
 def _add_tune_holds(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("tune-holds", help="tune a trained pair model to hold a hand or the head still where the "
-                                           "input holds it, changing nothing else it can help")
-    p.add_argument("--model", default="normal2exhausted", help="the pair model to tune (a file or a shipped name)")
+    p = sub.add_parser("tune-holds", help="tune a trained pair or multi-style model to hold a hand or the head still "
+                                           "where the input holds it, changing nothing else it can help")
+    p.add_argument("--model", default="normal2exhausted",
+                   help="the pair or multi-style model to tune (a file or a shipped name)")
     p.add_argument("--out", type=Path, required=True, help="the tuned model's file (.safetensors)")
     p.add_argument("--lambda-hold", type=float, help="weight of the hold term (default 4)")
     p.add_argument("--distil", type=float, help="weight of the distillation to the model as it was (default 100)")
-    p.add_argument("--epochs", type=_positive_int, help="passes over each style's training words (default 10)")
+    p.add_argument("--epochs", type=_positive_int,
+                   help="passes over the training words (default 10 for a pair model, 3 for a multi-style one)")
     p.add_argument("--seed", type=int, default=3)
     _add_data_options(p)
     p.set_defaults(func=run_tune_holds)

@@ -28,6 +28,7 @@ from stylecast.motion.humanoid import HUMANOID_BONES
 
 from .content import CM, PositionView
 from .metrics import HOLD_JOINTS, HOLD_SPEED
+from .tuning import BATCH
 
 FEET = ("LeftFoot", "RightFoot")
 STANDING_FOOT_SPEED = 1.0  # cm per frame against the hips: below it, both feet, the input stands
@@ -60,7 +61,6 @@ class HoldTerm:
 
 # --- tuning a finished pair model (``stylecast tune-holds``) ------------------------------------
 
-BATCH = 32
 HOLD_TUNE_EPOCHS = 10  # passes over each style's training words
 HOLD_TUNE_LR = 1e-4
 HOLD_TUNE_HOLD = 4.0
@@ -71,17 +71,46 @@ HOLD_TUNE_HOLD = 4.0
 HOLD_TUNE_DISTIL = 100.0
 
 
+# A multi-style model is tuned over every style's words (``tuning.tune_multistyle``), seven
+# styles' worth a pass where a pair model's generator sees one style's: fewer passes.
+HOLD_TUNE_MULTISTYLE_EPOCHS = 3
+
+
 def tune_holds(model, out, *, lambda_hold: float = HOLD_TUNE_HOLD, distil: float = HOLD_TUNE_DISTIL,
-               epochs: int = HOLD_TUNE_EPOCHS, lr: float = HOLD_TUNE_LR, seed: int = 3, data_dir=None,
+               epochs: int | None = None, lr: float = HOLD_TUNE_LR, seed: int = 3, data_dir=None,
                cache_dir=None, max_words: int | None = None, log=print):
-    """Tune a finished pair model so it holds still where its input stands and holds
-    (``HoldTerm``), and changes nothing else it can help: each generator learns
-    ``distil * |G(x) - G_before(x)| + lambda_hold * hold(G(x), x)`` over its source style's
-    training words, Adam from the model's own weights. Why not the hold term in the GAN's
-    training (``train --lambda-hold``): there it fixed the holds but every run, from scratch or
-    resumed from v3's run, came out another GAN than v3 (measured in the model card); the
-    distillation keeps the one that was chosen. ``max_words``: at most that many words of each
-    style (tests). Writes ``out`` (.safetensors)."""
+    """Tune a finished model so it holds still where its input stands and holds
+    (``HoldTerm``), and changes nothing else it can help: each generator of a pair model
+    learns ``distil * |G(x) - G_before(x)| + lambda_hold * hold(G(x), x)`` over its source
+    style's training words (``epochs`` passes, default HOLD_TUNE_EPOCHS), Adam from the model's
+    own weights; a multi-style model the same over every style's words, each sent to another
+    style (``tuning.tune_multistyle``, default HOLD_TUNE_MULTISTYLE_EPOCHS). Why not the hold
+    term in the GAN's training (``train --lambda-hold``): there it fixed the holds but every
+    run, from scratch or resumed from v3's run, came out another GAN than v3 (measured in the
+    model card); the distillation keeps the one that was chosen. ``max_words``: at most that
+    many words of each style (tests). Writes ``out`` (.safetensors)."""
+    from . import checkpoint as ckpt
+    from .restyler import read_model
+    from .restyler_multistyle import KIND as MULTISTYLE_KIND
+
+    if read_model(ckpt.resolve(model))[1].get("kind") == MULTISTYLE_KIND:
+        from .tuning import tune_multistyle
+
+        def make_term(rep, skeleton, *_):
+            hold = HoldTerm(rep, skeleton, "cpu")
+            return lambda restyled, source, *_: hold(restyled, source)
+
+        return tune_multistyle(model, out, make_term, term="hold", weight=lambda_hold, distil=distil,
+                               epochs=epochs or HOLD_TUNE_MULTISTYLE_EPOCHS, seed=seed, command="tune-holds",
+                               what="to hold still where the input holds", lr=lr, data_dir=data_dir,
+                               cache_dir=cache_dir, max_words=max_words, log=log)
+    return _tune_pair_holds(model, out, lambda_hold=lambda_hold, distil=distil, epochs=epochs or HOLD_TUNE_EPOCHS,
+                            lr=lr, seed=seed, data_dir=data_dir, cache_dir=cache_dir, max_words=max_words, log=log)
+
+
+def _tune_pair_holds(model, out, *, lambda_hold: float, distil: float, epochs: int, lr: float, seed: int, data_dir,
+                     cache_dir, max_words: int | None, log):
+    """``tune_holds`` for a pair model."""
     import copy
     import time
     from pathlib import Path
@@ -101,7 +130,7 @@ def tune_holds(model, out, *, lambda_hold: float = HOLD_TUNE_HOLD, distil: float
     kind = meta.get("kind", PAIR_KIND)
     if kind != PAIR_KIND:
         raise UserError(f"checkpoint {path} is a {kind} model; tune-holds tunes a pair model (normal2exhausted "
-                        f"or a `stylecast train` output)")
+                        f"or a `stylecast train` output) or a multi-style one")
     cfg = network_config(path, meta, NetworkConfig)
     net = build_checked(path, tensors, rep, cfg, lambda: CycleGAN(cfg, rep.combine), ("G_a2b.", "G_b2a."))
     term = HoldTerm(rep, D.bandai_skeleton(D.list_files(data_dir)), "cpu")

@@ -83,9 +83,7 @@ class StepTerm:
 
 # --- tuning a finished multi-style model (``stylecast tune-steps``) --------------------------------
 
-BATCH = 32
 STEP_TUNE_EPOCHS = 4  # passes over every style's training words
-STEP_TUNE_LR = 1e-4
 STEP_TUNE_STEP = 1.0
 # The weight of the distillation, L1 on the channels against the model as it was (as
 # ``holds.HOLD_TUNE_DISTIL``, whose measure chose 100 for the pair model's holds).
@@ -93,90 +91,17 @@ STEP_TUNE_DISTIL = 100.0
 
 
 def tune_steps(model, out, *, lambda_step: float = STEP_TUNE_STEP, distil: float = STEP_TUNE_DISTIL,
-               epochs: int = STEP_TUNE_EPOCHS, lr: float = STEP_TUNE_LR, seed: int = 1, data_dir=None,
-               cache_dir=None, max_words: int | None = None, log=print):
+               epochs: int = STEP_TUNE_EPOCHS, seed: int = 1, **options):
     """Tune a finished multi-style model so its restyles step no higher than their target
-    style's (``StepTerm``), and change nothing else they can help: the generator learns
-    ``distil * |G(x, t) - G_before(x, t)| + lambda_step * step(G(x, t), x)`` over every
-    style's training words, each sent to a target drawn uniformly from the other styles,
-    Adam from the model's own weights. Why not the term in the GAN's training (``train
-    --lambda-step``): there it fixed the steps but came out another GAN than the shipped
-    draw, reading weaker as most styles; the distillation keeps the one that was chosen.
+    style's (``StepTerm``, in cm), and change nothing else they can help
+    (``tuning.tune_multistyle``; ``options``: its data, cache, ``max_words`` and log).
     Measured on the shipped file (MODEL_CARD.md, "A step term"): the steps come right
     (towards elderly, walks 1.32 -> 0.97x the input's) but the judges read most styles
-    weaker (exhausted 88 -> 63 % on the worst judge), so the shipped file is not tuned.
-    ``max_words``: at most that many words of each style (tests). Writes ``out``
-    (.safetensors) with every other tensor (the style reader) and entry of the model as it
-    was."""
-    import copy
-    import time
-    from pathlib import Path
+    weaker (exhausted 88 -> 63 % on the worst judge), so the shipped file is not tuned."""
+    from .tuning import tune_multistyle
 
-    import numpy as np
+    def make_term(rep, skeleton, words, actions, classes):
+        return StepTerm(rep, skeleton, "cpu", words, actions, classes)
 
-    from stylecast.motion.errors import UserError
-
-    from . import checkpoint as ckpt
-    from . import data as D
-    from .content import ActionLabels
-    from .multistyle import MultiStyleConfig, make_generator
-    from .networks import to_channels
-    from .restyler import build_checked, network_config, read_model
-    from .restyler_multistyle import KIND
-    from .styles import STYLES
-
-    t0, c0 = time.perf_counter(), time.process_time()
-    path = ckpt.resolve(model)
-    tensors, meta, rep = read_model(path)
-    if meta.get("kind") != KIND:
-        raise UserError(f"checkpoint {path} is not a multi-style model; tune-steps tunes one (multistyle or a "
-                        f"`stylecast train --styles all` output)")
-    cfg = network_config(path, meta, MultiStyleConfig)
-    prefix = "G."
-    student = build_checked(path, {k[len(prefix):]: v for k, v in tensors.items() if k.startswith(prefix)}, rep, cfg,
-                            lambda: make_generator(cfg, rep.combine), ("",))
-    teacher = copy.deepcopy(student).eval().requires_grad_(False)
-    student.train()
-    hop = int(meta.get("training", {}).get("hop", 20))
-    sets = {(s, "train"): D.load_wordset(s, "train", data_dir, cache_dir, hop, max_words) for s in STYLES}
-    labels = ActionLabels.of(sets)
-    words = [to_channels(torch.from_numpy(sets[s, "train"].features(rep))) for s in STYLES]
-    actions = [torch.from_numpy(labels.train[s]) for s in STYLES]
-    term = StepTerm(rep, D.bandai_skeleton(D.list_files(data_dir)), "cpu", words, actions, len(labels.classes))
-    codes = torch.eye(len(STYLES))
-    opt = torch.optim.Adam(student.parameters(), lr=lr, betas=(0.5, 0.999))
-    rng = np.random.default_rng(seed)
-    style_of = np.concatenate([np.full(len(w), k) for k, w in enumerate(words)])
-    index = np.concatenate([np.arange(len(w)) for w in words])
-    for epoch in range(epochs):
-        order, sums, steps = rng.permutation(len(style_of)), np.zeros(2), 0
-        targets = (style_of + rng.integers(1, len(STYLES), size=len(style_of))) % len(STYLES)  # any other style
-        for i in range(0, len(order) - BATCH + 1, BATCH):
-            b = order[i:i + BATCH]
-            src, tgt = torch.from_numpy(style_of[b]), torch.from_numpy(targets[b])
-            x = torch.stack([words[k][j] for k, j in zip(style_of[b], index[b])])
-            a = torch.stack([actions[k][j] for k, j in zip(style_of[b], index[b])])
-            with torch.no_grad():
-                before = teacher(x, codes[tgt])
-            y = student(x, codes[tgt])
-            kept, step = (y - before).abs().mean(), term(y, x, a, src, tgt)
-            loss = distil * kept + lambda_step * step
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sums += (kept.item(), step.item())
-            steps += 1
-        log(f"epoch {epoch + 1}/{epochs}: distillation {sums[0] / steps:.5f}, step {sums[1] / steps:.4f} cm")
-    tuned = {prefix + k: v.detach().numpy() for k, v in student.state_dict().items()}
-    kept_tensors = {k: v for k, v in tensors.items() if not k.startswith(prefix)}
-    settings = {"from": str(model), "from_weights_sha256": meta.get("weights_sha256"),
-                "git_revision": ckpt.git_revision(), "lambda_step": lambda_step, "distil": distil, "epochs": epochs,
-                "lr": lr, "seed": seed, "batch": BATCH,
-                "last_epoch": {"distillation": sums[0] / steps, "step_cm": sums[1] / steps}}
-    out = Path(out)
-    ckpt.save_checkpoint(out, {**kept_tensors, **tuned},
-                         {**meta, "lambdas": {**meta.get("lambdas", {}), "step": lambda_step}, "step_tuning": settings,
-                          "weights": f"{meta.get('weights', 'the trained weights')}, then tuned to step as the "
-                                     f"target style does (stylecast tune-steps)"})
-    log(f"wrote {out} in {(time.perf_counter() - t0) / 60:.1f} min ({(time.process_time() - c0) / 60:.1f} CPU min)")
-    return out
+    return tune_multistyle(model, out, make_term, term="step", weight=lambda_step, distil=distil, epochs=epochs,
+                           seed=seed, command="tune-steps", what="to step as the target style does", **options)
