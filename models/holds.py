@@ -28,7 +28,7 @@ from stylecast.motion.humanoid import HUMANOID_BONES
 
 from .content import CM, PositionView
 from .metrics import HOLD_JOINTS, HOLD_SPEED
-from .tuning import BATCH
+from .tuning import BATCH, distilled_step
 
 FEET = ("LeftFoot", "RightFoot")
 STANDING_FOOT_SPEED = 1.0  # cm per frame against the hips: below it, both feet, the input stands
@@ -149,12 +149,7 @@ def _tune_pair_holds(model, out, *, lambda_hold: float, distil: float, epochs: i
                 with torch.no_grad():
                     before = teacher(x)
                 y = student(x)
-                kept, held = (y - before).abs().mean(), term(y, x)
-                loss = distil * kept + lambda_hold * held
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                sums += (kept.item(), held.item())
+                sums += distilled_step(opt, y, before, term(y, x), distil, lambda_hold)
                 steps += 1
             log(f"{name} ({style} words) epoch {epoch + 1}/{epochs}: distillation {sums[0] / steps:.5f}, "
                 f"hold {sums[1] / steps:.4f} cm/frame")

@@ -22,6 +22,18 @@ TUNE_LR = 1e-4
 TermMaker = Callable[..., Callable[..., torch.Tensor]]
 
 
+def distilled_step(opt, restyled: torch.Tensor, before: torch.Tensor, value: torch.Tensor, distil: float,
+                   weight: float) -> tuple[float, float]:
+    """One step of ``opt`` on ``distil * |restyled - before| + weight * value`` (the term's
+    value on the batch): the distillation and the term, as floats."""
+    kept = (restyled - before).abs().mean()
+    loss = distil * kept + weight * value
+    opt.zero_grad()
+    loss.backward()
+    opt.step()
+    return kept.item(), value.item()
+
+
 def tune_multistyle(model, out, make_term: TermMaker, *, term: str, weight: float, distil: float, epochs: int,
                     seed: int, command: str, what: str, lr: float = TUNE_LR, data_dir=None, cache_dir=None,
                     max_words: int | None = None, log=print):
@@ -82,12 +94,7 @@ def tune_multistyle(model, out, make_term: TermMaker, *, term: str, weight: floa
             with torch.no_grad():
                 before = teacher(x, codes[tgt])
             y = student(x, codes[tgt])
-            kept, value = (y - before).abs().mean(), loss_of(y, x, a, src, tgt)
-            loss = distil * kept + weight * value
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sums += (kept.item(), value.item())
+            sums += distilled_step(opt, y, before, loss_of(y, x, a, src, tgt), distil, weight)
             steps += 1
         log(f"epoch {epoch + 1}/{epochs}: distillation {sums[0] / steps:.5f}, {term} {sums[1] / steps:.4f}")
     tuned = {prefix + k: v.detach().numpy() for k, v in student.state_dict().items()}
