@@ -301,10 +301,12 @@ def test_a_raised_hand_sways_across_by_the_waves_or_the_raises_gain_and_a_hangin
 
 
 def test_a_sway_turn_moves_a_hand_across_to_first_order_and_never_further_than_asked():
-    """``sway_turns``: a hanging hand, or one raised straight up, moves across by the shift
-    to first order; in any pose, arms held nearly straight across or straight forward among
-    them, no hand moves further than the shift (where ``move_across``'s exact move swings a
-    hand held nearly straight across far square to it)."""
+    """``sway_turns``: a hanging hand, one raised straight up, or one held straight forward at
+    shoulder height (as in a feminine raise: a turn about the forward axis alone could not
+    move it across at all) moves across by the shift to first order; in any pose, arms held
+    nearly straight across among them, no hand moves further than the shift (where
+    ``move_across``'s exact move swings a hand held nearly straight across far square to
+    it)."""
     from stylecast.motion.footlock.across import sway_turns, turn_upper_arms
 
     shift = np.full((1, 2), 2.0)
@@ -326,6 +328,8 @@ def test_a_sway_turn_moves_a_hand_across_to_first_order_and_never_further_than_a
     moved = np.linalg.norm(turned.hand - places.hand, axis=-1)
     assert np.all(moved <= np.abs(shifts) * 1.001 + 1e-9)
     assert np.all(moved[:100] < 0.2 * np.abs(shifts[:100]))  # held nearly straight across: hardly moved at all
+    across = np.sum((turned.hand - places.hand) * places.left, axis=-1)
+    np.testing.assert_allclose(across[100:200], shifts[100:200], rtol=0.05)  # held straight forward: all of it
     straight = move_across(poses[:100], SKELETON.offsets, np.full((100, 2), -2.0))  # the exact move, for contrast
     assert np.linalg.norm(arm_places(straight, SKELETON.offsets).hand - places.hand[:100], axis=-1).max() > 5.0
 
