@@ -259,8 +259,14 @@ def test_after_a_slow_spell_the_delay_comes_back_down_to_the_presets_without_lat
     top = max(delays)
     assert raised and top > 5, daemon.delay_notes
     assert daemon.settings.delay == 5 == s.settings.delay, daemon.delay_notes  # back to the preset's
-    assert delays[delays.index(top):] == list(range(top, 4, -1))  # down one frame at a time
-    assert len(lowered) == top - 5 and "delay lowered from" in lowered[0] and "frame skipped" in lowered[0]
+    # Down one frame at a time. A shared machine's own stall may raise it again on the way
+    # down (CI, 2026-12-07: 9, 8, 7, 6, 7, 6, 5), as in the test above; each lowering is still
+    # one frame, and one note.
+    steps = [b - a for a, b in zip(delays, delays[1:])]
+    assert all(step == -1 for step in steps if step < 0) and delays[-1] == 5, delays
+    assert sum(step < 0 for step in steps) >= top - 5, delays
+    assert len(lowered) == sum(step < 0 for step in steps), (lowered, delays)
+    assert "delay lowered from" in lowered[0] and "frame skipped" in lowered[0]
     assert s.skipped >= len(lowered)
     assert s.blender.late_frames == late[delays.index(top)], (late, delays)  # lowering made none late
 
