@@ -129,9 +129,9 @@ def sway_turns(places: ArmPlaces, shift: np.ndarray) -> np.ndarray:
     The turn was about the level forward axis alone until 2026-12-07, whose lever on a hand
     held in front of the shoulder is only its height over or under it: the multistyle
     model's feminine raises (the hand held so) with their sway taken away had their worst
-    held-out clip's largest one-frame jerk at 5.4x the
-    input's (1.6x with this turn, as without the gain), and active's raises at half their
-    sway 3.4x (2.5x with this turn; the model card, "Feminine raises read as waves").
+    held-out clip's largest one-frame jerk at 5.4x the input's (1.6x with this turn, as
+    without the gain), and active's raises at half their sway 3.4x (2.5x with this turn;
+    the model card, "Feminine raises read as waves").
     ``move_across``'s exact move swings a hand held nearly straight across far square to
     "across" for a small shift (a lowering hand of the multistyle model's raises at 0.97 of
     its reach, damped 2 cm, swung 12 cm in a frame: one frame's jerk 22x the input's); the
