@@ -68,7 +68,9 @@ def test_oscdump_receives_vmc_frames_at_60_hz(bundled):
         daemon.run(duration=1.0)
         daemon.close()
         sent = daemon.sinks[0].vmc.sender
-        assert sent.frames_sent == 60 - 5 and sent.datagrams_sent >= 2 * sent.frames_sent
+        # 60 ticks less the delay (5; on a busy machine the planner may raise it, one status line,
+        # and the output holds a tick for each frame: CI, 2026-12-07, 6)
+        assert sent.frames_sent == 60 - daemon.settings.delay and sent.datagrams_sent >= 2 * sent.frames_sent
         time.sleep(0.3)
     finally:
         dump.terminate()
@@ -81,7 +83,7 @@ def test_oscdump_receives_vmc_frames_at_60_hz(bundled):
         by_address.setdefault(fields[1], []).append(fields)
     assert set(by_address) == {"/VMC/Ext/Root/Pos", "/VMC/Ext/Bone/Pos", "/VMC/Ext/OK", "/VMC/Ext/T"}
     frames = len(by_address["/VMC/Ext/T"])
-    assert frames == 55  # every frame arrived (loopback does not lose datagrams at this rate)
+    assert frames == sent.frames_sent  # every frame arrived (loopback does not lose datagrams at this rate)
     assert all(f[2] == "sfffffff" and f[3] == '"root"' for f in by_address["/VMC/Ext/Root/Pos"])
     bones = [f[3].strip('"') for f in by_address["/VMC/Ext/Bone/Pos"]]
     assert all(f[2] == "sfffffff" for f in by_address["/VMC/Ext/Bone/Pos"])
