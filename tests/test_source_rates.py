@@ -230,8 +230,10 @@ def test_a_sender_stamping_unix_time_is_timed_by_arrival_and_shown(caplog):
     # The delay (5 frames, 83 ms) plus where the sender's frames fall against the 60 Hz output
     # clock, which the run does not choose: over 36 runs here the median was 86-90 ms in 29
     # and 100.5-104.6 ms, one output frame later, in 7 (3 of 18 on the code of 5d7b0c1, 4 of 18
-    # on the next). So the bound is the delay, one frame of phase and 10 ms of scheduling.
-    assert s.latency.percentile(50) < 6 / 60 + 0.010 and s.blender.late_frames == 0
+    # on the next). So the bound is the delay, one frame of phase and 10 ms of scheduling; the
+    # delay the run ended at, since on a busy machine the planner may raise it (one status
+    # line; CI, 2026-12-07: a median of 117.5 ms).
+    assert s.latency.percentile(50) < (daemon.settings.delay + 1) / 60 + 0.010 and s.blender.late_frames == 0
 
 
 def test_the_sender_time_is_kept_through_repeats_and_restarts_and_given_up_when_it_stands_still():
