@@ -37,7 +37,8 @@ GOALS = (
     ("foot skating on the output's own contacts / input's, worst action (stricter than the issue)",
      "skate_ratio_worst_action", lambda v, m: v <= 1.5, "<= 1.5"),
     # Stricter than the issue (metrics.GAIT_STATISTICS): the hips' twist, the stance's width,
-    # the arms' swing forward and across and a raised hand's sway, each action's mean inside
+    # the arms' swing forward and across, a raised hand's sway and (since 2026-12-07) the
+    # elbows' bend, each action's mean inside
     # the range of every real take of the target style and that action
     # (eval_measures.gait_outside: 1 inside). Absent from reports before it.
     ("gait statistics inside the real target takes' range, worst action (factor outside; stricter than the issue)",
@@ -353,8 +354,10 @@ def _gait_lines(m: dict) -> list[str]:
              "forward-and-back swing against the hips about their 1 s running mean, standard deviation in cm; "
              "arm swing across: the same across the body while the hands hang (not raised), cm; raised hand sway: "
              "the across-the-body sway of a hand held over its elbow about its 1 s running mean, standard "
-             "deviation in cm, the busier hand's (a wave's; 0 without a raised hand) (`metrics.GAIT_STATISTICS`). "
-             "A figure outside the brackets by more than its tolerance (1 degree or cm) is in bold.", "",
+             "deviation in cm, the busier hand's (a wave's; 0 without a raised hand); elbow bend: the angle between "
+             "upper arm and forearm, 0 straight, the mean over frames and arms in degrees (`metrics.GAIT_STATISTICS`). "
+             "A figure outside the brackets by more than its tolerance (1 degree or cm; 5 degrees for the elbows) is "
+             "in bold.", "",
              "| action | " + " | ".join(next(iter(ranges.values()))) + " |", "|---|" + "---|" * len(next(iter(ranges.values())))]
     for a, r in ranges.items():
         if a not in per["proposed"]:  # no held-out take of the action restyled

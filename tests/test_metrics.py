@@ -810,6 +810,42 @@ def test_raised_hand_sway_reads_a_wave_and_not_a_still_raise_or_a_lowered_hand()
     assert name == "raised_hand_sway_cm" and factor == pytest.approx(5.5 / (4.0 / np.sqrt(2)), rel=0.03)
 
 
+def bent_arms(bend_deg: float, facing_deg: float = 30.0, frames: int = 120):
+    """``walking_gait`` with arms: each upper arm hangs 30 cm from its shoulder joint and the
+    forearm (25 cm) is bent ``bend_deg`` forward of it."""
+    q, p = walking_gait(frames=frames, facing_deg=facing_deg)
+    yaw = np.radians(facing_deg)
+    forward = np.array([np.sin(yaw), 0.0, np.cos(yaw)])
+    bend = np.radians(bend_deg)
+    for side, sign in (("Left", 1.0), ("Right", -1.0)):
+        shoulder = p[:, 0] + [0.0, 45.0, 0.0] + sign * 18.0 * np.array([np.cos(yaw), 0.0, -np.sin(yaw)])
+        elbow = shoulder - [0.0, 30.0, 0.0]
+        p[:, HUMANOID_BONES.index(f"{side}UpperArm")] = shoulder
+        p[:, HUMANOID_BONES.index(f"{side}LowerArm")] = elbow
+        p[:, HUMANOID_BONES.index(f"{side}Hand")] = elbow + 25.0 * (np.cos(bend) * np.array([0.0, -1.0, 0.0])
+                                                                    + np.sin(bend) * forward)
+    return q, p
+
+
+def test_elbow_bend_reads_a_known_bend_and_a_straightened_run_reads_outside():
+    """Arms bent 55 degrees read 55 at any facing, straight ones 0, folded ones 120; arms
+    without length (a synthetic take without arms) read NaN, which no range fails. Runs
+    restyled towards feminine bent them 38 degrees on average where every real feminine run
+    bends them 49-61: outside, and named."""
+    from stylecast.models.eval_measures import gait_outside
+
+    for facing in (0.0, 30.0, 170.0):
+        assert M.elbow_bend(None, bent_arms(55.0, facing)[1]) == pytest.approx(55.0, abs=1e-6)
+    assert M.elbow_bend(None, bent_arms(0.0)[1]) == pytest.approx(0.0, abs=1e-4)
+    assert M.elbow_bend(None, bent_arms(120.0)[1]) == pytest.approx(120.0, abs=1e-6)
+    assert np.isnan(M.gait_statistics(*walking_gait())["elbow_bend_deg"])
+    assert gait_outside({"elbow_bend_deg": float("nan")}, {"elbow_bend_deg": (49.0, 61.0)}) == (1.0, "")
+    straightened = M.gait_statistics(*bent_arms(38.0))
+    factor, name = gait_outside(straightened, {"elbow_bend_deg": (49.0, 61.0)})
+    assert name == "elbow_bend_deg" and factor == pytest.approx((49.0 - 5.0) / 38.0, rel=1e-6)
+    assert gait_outside(M.gait_statistics(*bent_arms(46.0)), {"elbow_bend_deg": (49.0, 61.0)}) == (1.0, "")
+
+
 def test_gait_outside_the_real_range_fails_the_goal_and_names_the_statistic():
     """Inside every real take's range (widened by the tolerance, 1 degree or cm) reads 1;
     hips swung 1.5x past the most any real take swings, or feet crossed or 4 cm apart
