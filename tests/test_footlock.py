@@ -155,11 +155,12 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
                    restyled(q)),
                   (SK, replace(ON_INPUT_ANKLES, pace=((2.0, 1.5),)), glide, crouched(q)),  # and a pace
                   (SK, OTHER_STANCE, roots, restyled(q, 20.0)),  # a stance of other settings beside the first
-                  # swings on the input's path, the arms' swing, the hips' bob, the swing across and
-                  # a raised hand's sway scaled (``GaitAmplitude``)
+                  # swings on the input's path, the arms' swing, the hips' bob, the swing across, a
+                  # raised hand's sway scaled and the elbows' bend (``GaitAmplitude``)
                   (SK, replace(ON_INPUT_PATH, pace=((2.0, 1.5),), arm_swing=((2.0, 0.5), (5.0, 1.5)),
                                hips_bob=((2.0, 0.5),), arm_across=((2.0, 0.0), (5.0, 0.5)),
-                               wave_sway=((0.0, 1.5), (5.0, 1.0)), raise_sway=((0.0, 0.5), (5.0, 1.0))), glide,
+                               wave_sway=((0.0, 1.5), (5.0, 1.0)), raise_sway=((0.0, 0.5), (5.0, 1.0)),
+                               elbow_bend=((2.0, 0.0, 0.0), (5.0, 1.0, 60.0))), glide,
                    restyled(q))]
     together = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     alone = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
@@ -183,8 +184,8 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
         lifted += not np.array_equal(jobs[3].result, jobs[3].outputs) and not jobs[3].weights.any()
     assert locked > 300 and lifted > 10  # both the lock and the floor step were exercised
     assert np.ptp([lock.pace._shift[1] for lock in together]) > 10.0  # the pace held one body back
-    assert together[5].amplitude._moving == [True] * 5  # the gait amplitude was exercised
-    assert together[2].amplitude._moving == [False, False, True, False, False]
+    assert together[5].amplitude._moving == [True] * 7  # the gait amplitude was exercised
+    assert together[2].amplitude._moving == [False, False, True, False, False, False, False]
     assert [lock.locked_frames for lock in together] == [lock.locked_frames for lock in alone]
 
 

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 from stylecast.models import data as D
-from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWING_TRIM, ARM_SWINGS, HIPS_BOBS,
-                                             RAISED_SWAY_GAIN, across_points, amplitude_points, amplitudes,
-                                             measure_arm_swings, measure_hips_bobs, sway_points)
+from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWING_TRIM, ARM_SWINGS, ELBOW_BEND_SHARE,
+                                             ELBOW_BENDS, HIPS_BOBS, RAISED_SWAY_GAIN, across_points,
+                                             amplitude_points, amplitudes, elbow_points, measure_arm_swings,
+                                             measure_elbow_bends, measure_hips_bobs, sway_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
@@ -33,7 +34,8 @@ SKELETON = humanoid_skeleton_default()
 
 
 @needs_data
-@pytest.mark.parametrize("table, measure", [(ARM_SWINGS, measure_arm_swings), (HIPS_BOBS, measure_hips_bobs)])
+@pytest.mark.parametrize("table, measure", [(ARM_SWINGS, measure_arm_swings), (HIPS_BOBS, measure_hips_bobs),
+                                            (ELBOW_BENDS, measure_elbow_bends)])
 def test_the_amplitude_tables_are_what_the_training_clips_measure(table, measure):
     measured = measure(D.list_files(DATA))
     assert set(measured) == set(table)
@@ -362,6 +364,59 @@ def test_sway_points_give_the_mix_gains_standing_and_one_at_the_source_walking_p
                                                           sway_points("normal", {style: 1.0}, 1))
 
 
+def test_elbow_points_take_the_named_styles_share_of_their_own_bend_at_the_source_paces():
+    style = next(s for s, (_, runs) in ELBOW_BEND_SHARE.items() if runs > 0)
+    walks, runs = ELBOW_BEND_SHARE[style]
+    points = elbow_points("normal", {style: 1.0})
+    walk_bend = ELBOW_BENDS[style][0] if walks else 0.0  # a share of none asks for no bend
+    assert np.asarray(points) == pytest.approx(np.array([[PACES["normal"][0] / 60, walks, walk_bend],
+                                                         [PACES["normal"][1] / 60, runs, ELBOW_BENDS[style][1]]]))
+    # a mix with a style that keeps the restyle's bend takes half the share, of the same bend
+    half = elbow_points("normal", {style: 0.5, "feminine": 0.5})
+    assert half[1][1:] == pytest.approx((runs / 2, ELBOW_BENDS[style][1]))
+    assert "feminine" not in ELBOW_BEND_SHARE and elbow_points("normal", {"feminine": 1.0}) == ()
+    assert elbow_points("robot", {style: 1.0}) == ()  # a source of unknown paces: none
+    assert amplitudes("normal", {style: 1.0})["elbow_bend"] == points
+
+
+def bent_elbows(n: int, speed: float, mean: float, swing: float = 0.3):
+    """``swinging`` without the upper arms' swing, each elbow (a hinge about Y) bending
+    ``swing`` radians either side of ``mean`` at 1 Hz."""
+    roots, q = swinging(n, speed=speed, amplitude_deg=0.0)
+    bend = mean + swing * np.sin(2 * np.pi * np.arange(n) / 60.0)
+    for joint, sign in ((HUMANOID_BONES.index("LeftLowerArm"), -1.0), (HUMANOID_BONES.index("RightLowerArm"), 1.0)):
+        q[:, joint] = rot.exp_map(np.outer(sign * bend, [0.0, 1.0, 0.0]))  # ``HINGES``: left with -Y, right +Y
+    return roots, q
+
+
+def test_a_running_stream_bends_its_elbows_as_the_style_and_a_standing_one_not_at_all():
+    """Elbows bent 104 degrees on average while running, the style asking for 70 at the
+    running pace: their mean moves to 70, their swing about it stays; at half the share,
+    half way; standing (a wave, a raise: the arms are the action), left alone; a hinge
+    stays a hinge."""
+    from stylecast.motion.hinges import elbow_flexion
+
+    n, settled = 600, slice(240, None)
+    run = ((2.0, 0.0, 0.0), (5.0, 1.0, 70.0))
+    roots, q = bent_elbows(n, speed=5.0, mean=np.radians(104.0))
+    out = arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), roots, q, q)
+    flexion = np.degrees(elbow_flexion(out)[settled])
+    assert flexion.mean(axis=0) == pytest.approx([70.0, 70.0], abs=1.0)
+    own = np.degrees(elbow_flexion(q)[settled])
+    # its swing kept, but for what the low-pass lets into the mean (a triple pole of 15 frames
+    # passes 15 % of a 1 Hz swing, which moving the mean adds back, out of phase)
+    assert np.ptp(flexion, axis=0) == pytest.approx(np.ptp(own, axis=0), rel=0.2)
+    for joint in ("LeftLowerArm", "RightLowerArm"):
+        assert np.abs(rot.log_map(out[:, HUMANOID_BONES.index(joint)])[:, [0, 2]]).max() < 1e-9  # a hinge
+    half = arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=((2.0, 0.0, 0.0), (5.0, 0.5, 70.0)))), roots, q, q)
+    assert np.degrees(elbow_flexion(half)[settled]).mean() == pytest.approx(87.0, abs=1.0)
+    between = arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), *bent_elbows(n, 3.5, np.radians(104.0)),
+                      bent_elbows(n, 3.5, np.radians(104.0))[1])
+    assert np.degrees(elbow_flexion(between)[settled]).mean() == pytest.approx(87.0, abs=1.0)  # the line
+    still_roots, still = bent_elbows(n, speed=0.0, mean=np.radians(104.0))
+    assert arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), still_roots, still, still) is None
+
+
 def test_an_elbow_swings_by_the_gain_and_stays_a_hinge():
     """An elbow (``motion.hinges``: it flexes about its Y) bending back and forth while
     walking: its flexion's swing is scaled by the gain about its mean, it bends sideways no
@@ -462,12 +517,12 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     streams = [(bobbing(n, speed), swinging(n, speed, seed=k)[1]) for k, speed in enumerate((2.0, 5.0, 0.0, 2.0))]
     streams.append(waving(n))  # a standing wave, its raised hands' sway scaled
     settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips, arm_across=across, wave_sway=wave,
-                        raise_sway=lift)
-                for arms, hips, across, wave, lift in
-                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),), ((2.0, 0.0),), (), ()),
-                 (((2.0, 1.5),), (), ((5.0, 0.5),), ((0.0, 1.5), (2.0, 1.0)), ()),
-                 (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8)), (), ()), ((), (), (), (), ()),
-                 ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0))))]
+                        raise_sway=lift, elbow_bend=bend)
+                for arms, hips, across, wave, lift, bend in
+                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),), ((2.0, 0.0),), (), (), ((1.0, 0.0, 0.0), (5.0, 1.0, 60.0))),
+                 (((2.0, 1.5),), (), ((5.0, 0.5),), ((0.0, 1.5), (2.0, 1.0)), (), ((2.0, 0.5, 30.0),)),
+                 (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8)), (), (), ()), ((), (), (), (), (), ()),
+                 ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0)), ()))]
     mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n), np.clip(np.arange(n) / 90.0, 0, 1)]
     whole = []
     for setting, (r, q), m in zip(settings, streams, mixes):
@@ -484,7 +539,8 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
             assert heights[k] == pytest.approx(whole[k][1][t], abs=1e-9)
     assert np.abs(whole[0][0] - streams[0][1]).max() > 0.01 and np.abs(whole[0][1] - streams[0][0][:, 1]).max() > 0.1
     assert live[0]._moving[2] and live[1]._moving[2]  # the swing across was exercised (the third stands)
-    assert live[4]._moving[3:] == [True, True] and np.abs(whole[4][0] - streams[4][1]).max() > 0.01  # and the sways
+    assert live[4]._moving[3:5] == [True, True] and np.abs(whole[4][0] - streams[4][1]).max() > 0.01  # and the sways
+    assert live[0]._moving[5:] == [True, True] and live[1]._moving[5:] == [True, True]  # and the elbows' bend
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

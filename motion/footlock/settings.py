@@ -137,6 +137,10 @@ class ContactSettings:
     # point is at speed 0 (standing), so they fade out as the performer walks.
     wave_sway: tuple[tuple[float, float], ...] = ()
     raise_sway: tuple[tuple[float, float], ...] = ()
+    # ...and (input speed, share, degrees) of how far the elbows bend on average: the share of
+    # the way from the output's own bend (its low-pass) to the style's, none standing (the
+    # arms are the action of a wave or a raise), straight lines between the points.
+    elbow_bend: tuple[tuple[float, float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -220,13 +224,14 @@ def quick_hips_of(restyler, weights=None) -> float:
 
 
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
-NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": ()}
+NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
+                 "elbow_bend": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
-    """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway`` and ``raise_sway``, by name, with
-    ``restyler`` (towards the style mix ``weights``, where it takes one): () each for a
-    restyler without them."""
+    """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``
+    and ``elbow_bend``, by name, with ``restyler`` (towards the style mix ``weights``, where it
+    takes one): () each for a restyler without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)
     return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}
