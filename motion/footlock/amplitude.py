@@ -32,7 +32,7 @@ the pace, the stream takes the style's amplitudes:
 - the elbows' bend (``elbow_bend``, a style's choice): each elbow's flexion about its own
   low-pass in the OUTPUT keeps its swing, and the low-pass is moved a share of the way to the
   style's mean bend (``hinges.add_elbow_flexion``, a hinge still), none standing. The
-  generator bends a run's elbows its own way (towards active 104 degrees, real active runs
+  generator bends a run's elbows its own way (towards active 103 degrees, real active runs
   51-91; youthful 50, real 28-37), and the judges took those runs for other styles'.
 
 Each gain goes with the input's low-passed speed over ground (``ContactSettings.arm_swing``,
@@ -208,8 +208,8 @@ class GaitAmplitude:
     @property
     def active(self) -> tuple[bool, ...]:
         """Whether the arms', the hips', the across, the wave's, the raise's and the elbows'
-        bend's parts have work (``_gains``' order, the bend's two gains as one): a gain set, or one
-        still easing back to 1. Their low-passes run only then (a session that never had a
+        bend's parts have work (``_gains``' order, the bend's two gains as one): a gain set, or
+        one still easing back to its rest. Their low-passes run only then (a session that never had a
         gain costs nothing but its speed), and start settled on the frame they start at."""
         on = [gain.on or moving for gain, moving in zip(self._gains, self._moving)]
         return (*on[:BEND], on[BEND] or on[BEND + 1])
