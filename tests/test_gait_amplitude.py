@@ -410,8 +410,8 @@ def test_a_running_stream_bends_its_elbows_as_the_style_and_a_standing_one_not_a
         assert np.abs(rot.log_map(out[:, HUMANOID_BONES.index(joint)])[:, [0, 2]]).max() < 1e-9  # a hinge
     half = arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=((2.0, 0.0, 0.0), (5.0, 0.5, 70.0)))), roots, q, q)
     assert np.degrees(elbow_flexion(half)[settled]).mean() == pytest.approx(87.0, abs=1.0)
-    between = arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), *bent_elbows(n, 3.5, np.radians(104.0)),
-                      bent_elbows(n, 3.5, np.radians(104.0))[1])
+    slower_roots, slower = bent_elbows(n, speed=3.5, mean=np.radians(104.0))  # half way between the points
+    between = arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), slower_roots, slower, slower)
     assert np.degrees(elbow_flexion(between)[settled]).mean() == pytest.approx(87.0, abs=1.0)  # the line
     still_roots, still = bent_elbows(n, speed=0.0, mean=np.radians(104.0))
     assert arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), still_roots, still, still) is None
