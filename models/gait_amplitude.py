@@ -110,7 +110,7 @@ ELBOW_BENDS = {
 # The share of the way from the restyle's own elbow bend to the target style's (ELBOW_BENDS)
 # the stream takes, (walks, runs); a style not named keeps the restyle's. Chosen on the
 # judges, runs only (the walks' bends are near the real ones'). The generator bends a run's
-# elbows its own way: towards active 104 degrees (real active runs 51-91), exhausted 73
+# elbows its own way: towards active 103 degrees (real active runs 51-91), exhausted 72
 # (99-113), masculine 78 (53-69), youthful 50 (28-37), and its held-out runs read as those
 # styles in 53, 96, 10 and 25 % of windows (panel 0's mean, Intel Xeon VM); with the style's
 # bend, 100, 97, 41 and 60 %, and each target's style on the worst judge up 2.0, 0.3, 0.6 and
