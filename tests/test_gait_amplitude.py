@@ -383,6 +383,21 @@ def test_elbow_points_take_the_named_styles_share_of_their_own_bend_at_the_sourc
     assert amplitudes("normal", {style: 1.0})["elbow_bend"] == points
 
 
+def test_a_pair_model_takes_its_target_styles_run_bend_and_no_other_amplitude():
+    """The shipped pair default (normal -> exhausted) keeps its generator's arm swing and hip
+    bob, and its runs take exhausted's elbow bend; the other way (towards normal, a style
+    that keeps the restyle's bend) takes nothing."""
+    from stylecast.models.restyler import Restyler
+    from stylecast.motion.footlock import NO_AMPLITUDES
+
+    pair = Restyler.load()
+    own = pair.amplitudes()
+    assert own["elbow_bend"] and own["elbow_bend"] == elbow_points("normal", {"exhausted": 1.0})
+    assert {name: points for name, points in own.items() if name != "elbow_bend"} == \
+        {name: () for name in NO_AMPLITUDES if name != "elbow_bend"}
+    assert pair.with_direction("b2a").amplitudes() == NO_AMPLITUDES
+
+
 def bent_elbows(n: int, speed: float, mean: float, swing: float = 0.3):
     """``swinging`` without the upper arms' swing, each elbow (a hinge about Y) bending
     ``swing`` radians either side of ``mean`` at 1 Hz."""

@@ -62,9 +62,10 @@ def test_a_checkpoint_names_the_foot_lock_it_is_served_with(tiny_run, tmp_path, 
     assert main(["train", "--max-words", "8", "--epochs", "1", "--batch-size", "4", "--words-per-epoch", "4",
                  "--threads", "1", "--feet", "stance", "--out", str(tmp_path / "run"), "--no-progress"]) == 0
     restyler = Restyler.load(str(tmp_path / "run" / "model.safetensors"))
-    # (a pair model keeps its generator's own arm swing and hip bob: no gait amplitude)
-    assert restyler.feet == "stance" and feet_for(AUTO_FEET, restyler, "input") == FEET["stance"]
-    assert feet_for(AUTO_FEET, restyler) == replace(FEET["stance"], pace=restyler.pace())  # --pace style
+    # (a pair model keeps its generator's own arm swing and hip bob; its runs take the style's elbow bend)
+    bend = {"elbow_bend": restyler.amplitudes()["elbow_bend"]}
+    assert restyler.feet == "stance" and feet_for(AUTO_FEET, restyler, "input") == replace(FEET["stance"], **bend)
+    assert feet_for(AUTO_FEET, restyler) == replace(FEET["stance"], pace=restyler.pace(), **bend)  # --pace style
     tensors, meta = ckpt.read_checkpoint(tmp_path / "run" / "model.safetensors")
     ckpt.save_checkpoint(tmp_path / "glued.safetensors", tensors, {**meta, "feet": "glued"})
     capsys.readouterr()
