@@ -353,10 +353,11 @@ def elbow_bend(yaw: np.ndarray, positions: np.ndarray) -> float:
                                ("RightUpperArm", "RightLowerArm", "RightHand")):
         a = positions[:, HUMANOID_BONES.index(lower)] - positions[:, HUMANOID_BONES.index(upper)]
         b = positions[:, HUMANOID_BONES.index(hand)] - positions[:, HUMANOID_BONES.index(lower)]
-        length = np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1)
-        if np.any(length < 1e-9):
+        if np.any(np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1) < 1e-9):
             return float("nan")
-        angles.append(np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1) / length, -1.0, 1.0))))
+        # atan2 of the cross and dot products: accurate near straight, where arccos of the
+        # cosine loses half the digits (as ``rotations.angle_between``)
+        angles.append(np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))))
     return float(np.mean(angles))
 
 

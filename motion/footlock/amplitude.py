@@ -250,10 +250,10 @@ class GaitAmplitude:
             moved = self._across_block(inputs, outputs if swung is None else swung, extra[:, 2:BEND], offsets)
             swung = swung if moved is None else moved
         if bend_on:
-            flexion = elbow_flexion(outputs if swung is None else swung)
-            mean = self._low_pass("bend", flexion)
+            current = outputs if swung is None else swung
+            mean = self._low_pass("bend", elbow_flexion(current))
             if self._moving[BEND] or self._moving[BEND + 1]:
-                swung = _bent(outputs if swung is None else swung, mean, extra[:, BEND:])
+                swung = _bent(current, mean, extra[:, BEND:])
         return swung, bobbed
 
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
