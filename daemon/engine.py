@@ -39,7 +39,7 @@ import threading
 
 from stylecast.motion.clock import Clock
 from stylecast.motion.errors import UserError
-from stylecast.motion.footlock import amplitudes_of, feet_for, pace_of, quick_hips_of
+from stylecast.motion.footlock import amplitudes_of, feet_for, pace_of, quick_hips_of, stance_standing_of
 from stylecast.motion.humanoid import HUMANOID_BONES, humanoid_skeleton_default
 from stylecast.motion.words import BlendSettings, stream_settings_of
 
@@ -458,13 +458,15 @@ class Daemon:
 
     def _follow_style(self, sessions) -> None:
         """The pace each of ``sessions`` covers ground at, how quickly its hips follow the
-        restyled legs and how far its arms swing and hips bob, after a new model, direction
+        restyled legs, how much of its stance it keeps standing and how far its arms swing
+        and hips bob, after a new model, direction
         or style (``--pace``; ``footlock.Pace``, ``PelvisHeight`` and ``GaitAmplitude`` move to
         them smoothly)."""
         model = self.worker.restyler
         for s in sessions:
             s.feet.pace.set_points(pace_of(model, self.config.pace, s.style_target))
             s.feet.pelvis.set_quick_share(quick_hips_of(model, s.style_target))
+            s.feet.stance.set_standing(stance_standing_of(model, s.style_target))
             s.feet.amplitude.set_points(**amplitudes_of(model, s.style_target))
 
     def _control_error(self, message: str) -> None:

@@ -197,6 +197,9 @@ def test_live_styles_over_udp_one_batched_call_crossfade_and_status(tiny_multist
         # mix's weights): bob's mix is half masculine (all quick) and half active (half quick);
         # elderly asks for none
         assert [s.feet.pelvis.quick_share for s in daemon.sessions] == [0.0, 0.75]
+        # ...and keeps its own style's share of the stance standing (``standing_stance_of_style``):
+        # bob's half active (none of it) and half masculine (all of it)
+        assert [s.feet.stance.standing for s in daemon.sessions] == [1.0, 0.5]
         # ...and its arms swing and hips bob as its own style's (models/gait_amplitude.py):
         # alice's walks half as far, bob's arms half active's and half masculine's (trimmed,
         # ARM_SWING_TRIM); his hips would bob twice as much, and a bob only lessens

@@ -83,6 +83,43 @@ def test_a_restyled_stance_is_kept_and_a_planted_foot_stays_in_it():
     assert crept[-1] < crept[119] - 2 * 120 * 0.01 + 0.05 and crept_slide > 0.009
 
 
+def test_a_style_may_stand_where_the_performer_stands_and_still_keep_its_stance_walking():
+    """``stance_standing``: the share of the stance's place kept while the performer stands
+    (the multistyle model towards active keeps none: its restyled standing stance is wider
+    than any real active take's). A standing figure restyled 12 cm wider: kept all of it
+    (the default), none or half; walking, all of it whatever the share; a foot that landed
+    walking stays where it landed when the performer stops, until it lifts."""
+    frames = 90
+    ankle = np.zeros((frames, 2, 3))
+    own = (ankle, ankle + [0.0, 0.0, 12.0])
+    wider = ankle + [[[6.0, 0.0, 0.0], [-6.0, 0.0, 0.0]]]
+    restyled_feet = (wider, wider + [0.0, 0.0, 12.0])
+    planted = np.ones((frames, 2))
+    still = np.zeros((frames, 3))
+    walking = np.outer(np.arange(frames), [0.0, 0.0, 1.5])  # 1.5 cm a frame, past MOVING_SPEED
+
+    def offsets(standing, roots, weights=planted):
+        return StanceOffset(replace(STANCE, stance_standing=standing)).track(0, own, restyled_feet, weights,
+                                                                             roots=roots)[:, :, 0]
+
+    np.testing.assert_allclose(offsets(1.0, still), [[6.0, -6.0]] * frames)  # the restyled stance
+    np.testing.assert_allclose(offsets(0.0, still), 0.0)  # the performer's own
+    np.testing.assert_allclose(offsets(0.5, still), [[3.0, -3.0]] * frames)
+    landing = planted.copy()
+    landing[:40] = 0.0  # free for 40 frames, then planted
+    # walking, all of it (from the stream's second frame: its first has no speed yet)
+    np.testing.assert_allclose(offsets(0.0, walking, landing)[1:], [[6.0, -6.0]] * (frames - 1))
+    # free while walking, landing as the performer stops: the foot stands where it landed
+    stopping = walking.copy()
+    stopping[45:] = walking[45]
+    stopped = offsets(0.0, stopping, landing)
+    assert stopped[40, 0] > 5.9  # landed at (nearly) all of the stance, the speed still walking's
+    np.testing.assert_allclose(stopped[40:], np.broadcast_to(stopped[40], (frames - 40, 2)), atol=1e-12)  # held
+    # In between the paces, a share between: the low-passed speed is 0.6 cm a frame
+    slow = offsets(0.0, np.outer(np.arange(frames), [0.0, 0.0, 0.6]), landing)
+    np.testing.assert_allclose(slow[-1], [3.0, -3.0], atol=1e-6)
+
+
 def test_a_planted_foot_stands_no_further_than_the_stance_cap_beside_the_input():
     """An offset is taken as the lock blends in, while the restyled foot still swings, so a
     large one is mostly swing: capped at 8 cm the multistyle model's knees popped 2.0-3.1x
@@ -150,11 +187,13 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
     glide[100:, 2] = 5.0 * np.arange(100)
     performers = [(SK, ON_INPUT_ANKLES, roots, restyled(q)),
                   (SK.with_offsets(SK.offsets * 0.85), ON_INPUT_ANKLES, roots * [1, 0.85, 1], restyled(q, 20.0)),
-                  # the hands' swing across replaced, on a larger body gliding off
-                  (SK.with_offsets(SK.offsets * 1.1), replace(STANCE, arm_across=((2.0, 0.0),)), glide * [1, 1.1, 1],
-                   restyled(q)),
+                  # the hands' swing across replaced, on a larger body gliding off, none of the stance's place
+                  # kept standing
+                  (SK.with_offsets(SK.offsets * 1.1), replace(STANCE, arm_across=((2.0, 0.0),), stance_standing=0.0),
+                   glide * [1, 1.1, 1], restyled(q)),
                   (SK, replace(ON_INPUT_ANKLES, pace=((2.0, 1.5),)), glide, crouched(q)),  # and a pace
-                  (SK, OTHER_STANCE, roots, restyled(q, 20.0)),  # a stance of other settings beside the first
+                  # a stance of other settings beside the first, half its place kept standing
+                  (SK, replace(OTHER_STANCE, stance_standing=0.5), roots, restyled(q, 20.0)),
                   # swings on the input's path, the arms' swing, the hips' bob, the swing across, a
                   # raised hand's sway scaled and the elbows' bend (``GaitAmplitude``)
                   (SK, replace(ON_INPUT_PATH, pace=((2.0, 1.5),), arm_swing=((2.0, 0.5), (5.0, 1.5)),

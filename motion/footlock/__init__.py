@@ -35,7 +35,7 @@ from .lock import FootLock, plan_locks, push_frames
 from .pace import MAX_PACE_RATIO, Pace
 from .pelvis import PelvisHeight
 from .settings import (AUTO_FEET, FEET, NO_AMPLITUDES, PACE_CHOICES, ContactSettings, amplitudes_of, check_feet,
-                       check_pace, feet_for, pace_of, quick_hips_of)
+                       check_pace, feet_for, pace_of, quick_hips_of, stance_standing_of)
 from .solve import LockJob, kept_clearance, solve_lock_jobs
 from .stance import StanceOffset, stance_targets
 
@@ -43,4 +43,4 @@ __all__ = ["AUTO_FEET", "FEET", "HIPS", "LEGS", "LEG_INDEX", "MAX_PACE_RATIO", "
            "ContactSettings", "FootLock", "GaitAmplitude", "LockJob", "Pace", "PelvisHeight", "StanceOffset",
            "amplitudes_of", "approach", "check_feet", "check_pace", "feet_for", "kept_clearance", "knee_direction",
            "leg_chain", "lock_kernel", "pace_of", "plan_locks", "push_frames", "quick_hips_of", "solve_legs",
-           "solve_lock_jobs", "stance_targets"]
+           "solve_lock_jobs", "stance_standing_of", "stance_targets"]

@@ -80,6 +80,15 @@ class ContactSettings:
     # worst judge, active and feminine's standing actions less (the model card, "The stance
     # a standing take starts in").
     stance_lead_mean: bool = False
+    # ...and the share of the stance's place (the offset, not the turn) kept while the
+    # performer stands: it rises to all of it between STANDING_SPEED and MOVING_SPEED of the
+    # input's low-passed speed over ground (pace_tau), so walks and runs keep their restyled
+    # stance whatever this is; the restyler's ``standing_stance`` sets it for its style mix.
+    # The multistyle model's standing stance towards active is wider than any real active
+    # take's (raises and waves 17.7-21.6 cm against real 14.4-17.3; the performer's own 14.3
+    # to 15.2 lies inside): on the input's ankles standing, its raises read active 51-85 ->
+    # 81-90 % on the judges' mean (the model card, "Active stands as the performer stands").
+    stance_standing: float = 1.0
     # ...and the foot's turn about the vertical against the input's (toes out or in):
     # at most this many degrees, moving at most this fast while locked (degrees a frame;
     # 0.04 would move the ball of a 15 cm foot 0.01 cm).
@@ -178,6 +187,11 @@ class ContactSettings:
 # it stands at the bar (its jerk was 1.008 already).
 # "path": the input lock, and the feet in the air on the input's own path too
 # (``swing_path``); the multistyle model's for elderly and exhausted.
+# The input's low-passed speed over ground (cm/frame) at and below which a performer stands,
+# and from which they move (``stance_standing``): held-out normal raises and waves move
+# their root at most 0.13 cm a frame (p99), walks at least 1.25 (p10).
+STANDING_SPEED, MOVING_SPEED = 0.3, 0.9
+
 FEET = {"input": ContactSettings(),
         "stance": ContactSettings(stance_cap=8.0, pelvis_tau=8.0, release=8, stance_settle=True,
                                   stance_lead_mean=True),
@@ -223,6 +237,14 @@ def quick_hips_of(restyler, weights=None) -> float:
     return float(restyler.quick_hips(weights))
 
 
+def stance_standing_of(restyler, weights=None) -> float:
+    """``ContactSettings.stance_standing`` with ``restyler`` (towards the style mix
+    ``weights``, where it takes one): 1 (all of the stance) for a restyler that asks for no less."""
+    if not hasattr(restyler, "standing_stance"):
+        return 1.0
+    return float(restyler.standing_stance(weights))
+
+
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
 NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
                  "elbow_bend": ()}
@@ -243,6 +265,6 @@ def feet_for(name: str, restyler=None, pace: str = "style") -> ContactSettings:
     if name == AUTO_FEET:
         name = getattr(restyler, "feet", "input")
     styled = {"pace": pace_of(restyler, pace), "pelvis_quick_share": quick_hips_of(restyler),
-              **amplitudes_of(restyler)}
-    styled = {key: value for key, value in styled.items() if value}
+              "stance_standing": stance_standing_of(restyler), **amplitudes_of(restyler)}
+    styled = {key: value for key, value in styled.items() if value != getattr(FEET[name], key)}
     return replace(FEET[name], **styled) if styled else FEET[name]

@@ -171,7 +171,7 @@ def _advance(rows: _Rows) -> None:
         lock = job.lock
         rows.new_roots[lo:hi, 1] -= lock.pelvis.drops(np.where(down[lo:hi], gap[lo:hi], 0.0), down[lo:hi])
         stance = lock.stance.track(job.t0, (own[0][lo:hi], own[1][lo:hi]),
-                                   (restyled[0][lo:hi], restyled[1][lo:hi]), job.weights, job.mix)
+                                   (restyled[0][lo:hi], restyled[1][lo:hi]), job.weights, job.mix, job.roots)
         if stance is not None:
             rows.stance[lo:hi] = stance
         pace = lock.pace.track(job.roots, own[0][lo:hi], job.weights, job.mix)
@@ -207,7 +207,7 @@ def _advance_one_frame_each(rows: _Rows, restyled: tuple, gap: np.ndarray) -> No
                                       per_row[:, 0, None, None], per_row[:, 1, None, None], per_row[:, 2, None],
                                       per_row[:, 3, None])
         wanted, sure = wanted.tolist(), sure.tolist()
-        rows.stance[at] = [stance.follow(jobs[i].t0, [wanted[k]], [weights[i]], [sure[k]], [shown[i]])[0]
+        rows.stance[at] = [stance.follow(jobs[i].t0, [wanted[k]], [weights[i]], [sure[k]], [shown[i]], [xz[i]])[0]
                            for k, (i, stance) in enumerate(zip(at, stances))]
     drops, paced, body, feet = [], [], [], []
     for i, job in enumerate(jobs):

@@ -18,8 +18,10 @@ stream's first fade-in from pass-through (where it has one:
 for, so a foot planted at the start stands in the restyled stance from the first frame
 instead of sliding into it as the body fades in; through an offline clip's mirrored lead-in
 a planted foot takes the mean of the restyled stance over its contact (``stance_lead_mean``),
-not one frame of it. Each model kind names its lock (``FEET``, ``--feet auto``), and a
-checkpoint may name another (``train --feet``).
+not one frame of it. A style whose restyled standing stance is wrong for it keeps only a
+share of the stance's place while the performer stands (``stance_standing``, by the input's
+low-passed speed over ground), all of it walking. Each model kind names its lock (``FEET``,
+``--feet auto``), and a checkpoint may name another (``train --feet``).
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..smoothing import TriplePole
-from .settings import ContactSettings
+from .pace import TELEPORT_STEP
+from .settings import MOVING_SPEED, STANDING_SPEED, ContactSettings
 
 
 class StanceOffset:
@@ -64,6 +67,19 @@ class StanceOffset:
         self.aim = 1.0
         self._shown: TriplePole | None = None  # the shown share's low-pass (``for_fade``)
         self._fading = False  # the first fade's first frame seen
+        # The input's speed over ground, low-passed as the pace's (``stance_standing``);
+        # followed whatever the share, so a style set live starts from the performer's speed.
+        self._speed = TriplePole(settings.pace_tau)
+        self._previous_xz: tuple | None = None  # the last input root's (x, z)
+        self._last_step = 0.0  # ...its last step that was not a teleport
+        self._speed_now = 0.0
+        self._stepped = False  # the first step seen (the low-pass starts settled on it)
+        self.set_standing(settings.stance_standing)
+
+    def set_standing(self, share: float) -> None:
+        """The share of the stance's place kept while the performer stands (a new model or
+        style mix: ``stance_standing``); a planted foot keeps where it stands until it lifts."""
+        self.standing = min(max(float(share), 0.0), 1.0)
 
     def for_fade(self, fade_until: int, fade_tau: float) -> None:
         """A stream's first fade from pass-through ends at frame ``fade_until``, its correction
@@ -72,26 +88,31 @@ class StanceOffset:
         self._shown = TriplePole(fade_tau) if fade_tau > 0 else None
 
     def track(self, t0: int, own: tuple, restyled: tuple, weights: np.ndarray,
-              shown: np.ndarray | None = None) -> np.ndarray | None:
+              shown: np.ndarray | None = None, roots: np.ndarray | None = None) -> np.ndarray | None:
         """Frames t0 .. t0+n-1 in order: the input's and the restyled (ankle, ball)
-        positions, each (n, 2, 3), each foot's lock weight (n, 2: 0 free, 1 fully locked)
-        and the share of the restyle shown in each frame (n,; None: all of it) -> the lock
-        targets' offsets from the input's feet (n, 2, 3: x, z in cm and the turn in
-        radians), or None when off."""
+        positions, each (n, 2, 3), each foot's lock weight (n, 2: 0 free, 1 fully locked),
+        the share of the restyle shown in each frame (n,; None: all of it) and the input's
+        roots (n, 3; None: its speed held) -> the lock targets' offsets from the input's feet
+        (n, 2, 3: x, z in cm and the turn in radians), or None when off."""
         if self.cap <= 0:
             return None
         wanted, sure = stance_targets(own, restyled, self.cap, self.turn_cap, self.turn_unsure, self.turn_sure)
         shown = [1.0] * len(wanted) if shown is None else np.broadcast_to(shown, (len(wanted),)).tolist()
-        return np.array(self.follow(t0, wanted.tolist(), np.asarray(weights, float).tolist(), sure.tolist(), shown))
+        roots_xz = None if roots is None else np.asarray(roots)[:, [0, 2]].tolist()
+        return np.array(self.follow(t0, wanted.tolist(), np.asarray(weights, float).tolist(), sure.tolist(), shown,
+                                    roots_xz))
 
-    def follow(self, t0: int, wanted: list, weights: list, sure: list, shown: list) -> list:
+    def follow(self, t0: int, wanted: list, weights: list, sure: list, shown: list,
+               roots_xz: list | None = None) -> list:
         """``track``'s recurrence over frames t0 .. t0+n-1 on Python floats: the targets
-        (``stance_targets``), the feet's lock weights, how sure each turn is and the share of
-        the restyle shown, per frame as nested lists -> the offsets, the same nesting (new
-        lists). A rate limit is a recurrence; on floats because the daemon runs it one frame
-        at a time per performer (numpy's per-call cost would be most of it)."""
+        (``stance_targets``), the feet's lock weights, how sure each turn is, the share of
+        the restyle shown and the input root's [x, z] (None: its speed held), per frame as
+        nested lists -> the offsets, the same nesting (new lists). A rate limit is a
+        recurrence; on floats because the daemon runs it one frame at a time per performer
+        (numpy's per-call cost would be most of it)."""
         if t0 < self.fade_until:
             wanted = [self._at_aim(t0 + i, frame, share) for i, (frame, share) in enumerate(zip(wanted, shown))]
+        wanted = [self._placed(frame, None if roots_xz is None else roots_xz[i]) for i, frame in enumerate(wanted)]
         current = self._offset if self._offset is not None else wanted[0]
         out = []
         for i, (frame, weight, certainty) in enumerate(zip(wanted, weights, sure)):
@@ -125,6 +146,34 @@ class StanceOffset:
             out.append(current)
         self._offset = current
         return out
+
+    def _placed(self, frame: list, root_xz: list | None) -> list:
+        """A frame's targets [[x, z, turn], ...] -> with the share of the stance's place
+        wanted at it (``stance_standing``), the input's speed moved on by its root's [x, z]
+        (None: held)."""
+        place = self._place_share(root_xz)
+        return frame if place >= 1.0 else [[x * place, z * place, turn] for x, z, turn in frame]
+
+    def _place_share(self, root_xz: list | None) -> float:
+        """The share of the stance's place wanted at this frame (``stance_standing``), the
+        input's speed over ground moved on by its root's [x, z] (None: held)."""
+        if root_xz is not None:
+            x, z = root_xz
+            if self._previous_xz is None:  # the stream's first frame: no step yet
+                self._previous_xz = (x, z)
+            else:
+                step = ((x - self._previous_xz[0]) ** 2 + (z - self._previous_xz[1]) ** 2) ** 0.5
+                if step > TELEPORT_STEP:  # a looped clip or a tracker glitch (``Pace``): not a speed
+                    step = self._last_step
+                elif not self._stepped:
+                    self._speed.settle_on(step)  # the first step: settled on it, as the pace's
+                    self._stepped = True
+                self._previous_xz, self._last_step = (x, z), step
+                self._speed_now = self._speed.step(step)
+        if self.standing >= 1.0:
+            return 1.0
+        moving = min(max((self._speed_now - STANDING_SPEED) / (MOVING_SPEED - STANDING_SPEED), 0.0), 1.0)
+        return self.standing + (1.0 - self.standing) * moving
 
     def _at_aim(self, t: int, frame: list, share: float) -> list:
         """Frame t's targets [[x, z, turn], ...] of a restyle shown at ``share`` -> at the
