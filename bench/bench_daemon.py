@@ -334,7 +334,9 @@ def bench_footlock(model, motion, runs=5, performers=16):
     # of each upper arm a frame) against the same without it; and active's with its raises'
     # sway (the hands' places and three more low-passes a frame; on the walk the pace gates
     # it off, but it is paid for) against the same without it; and with the runs' elbow bend
-    # (the elbows' flexion and a low-pass a frame, paid on the walk too) against the same
+    # (the elbows' flexion and a low-pass a frame, paid on the walk too) against the same;
+    # and with the walks' hands carried forward (the arms' places, a low-pass and a turn of
+    # each upper arm a frame) against the same
     from stylecast.models.gait_amplitude import amplitudes
 
     youthful, active = (amplitudes("normal", {style: 1.0}) for style in ("youthful", "active"))
@@ -347,10 +349,12 @@ def bench_footlock(model, motion, runs=5, performers=16):
                                    ("stance", {"pelvis_quick_share": 1.0}, "stance, quick hips (masculine)"),
                                    ("stance", {**youthful, "arm_across": ()}, "stance, youthful arm swing and hip bob"),
                                    ("stance", youthful, "stance, youthful, the swing across too"),
-                                   ("stance", {**active, "raise_sway": (), "elbow_bend": ()},
+                                   ("stance", {**active, "raise_sway": (), "elbow_bend": (), "arm_forward": ()},
                                     "stance, active arm swing and hip bob"),
-                                   ("stance", {**active, "elbow_bend": ()}, "stance, active, the raises' sway too"),
-                                   ("stance", active, "stance, active, the runs' elbow bend too")):
+                                   ("stance", {**active, "elbow_bend": (), "arm_forward": ()},
+                                    "stance, active, the raises' sway too"),
+                                   ("stance", {**active, "arm_forward": ()}, "stance, active, the runs' elbow bend too"),
+                                   ("stance", active, "stance, active, the walks' hands forward too")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
             each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, overrides)
                                                        for _ in range(runs)]))

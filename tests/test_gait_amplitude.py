@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 from stylecast.models import data as D
-from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_SWING_TRIM, ARM_SWINGS, ELBOW_BEND_SHARE,
-                                             ELBOW_BENDS, HIPS_BOBS, RAISED_SWAY_GAIN, across_points,
-                                             amplitude_points, amplitudes, elbow_points, measure_arm_swings,
-                                             measure_elbow_bends, measure_hips_bobs, sway_points)
+from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SHARE, ARM_FORWARDS, ARM_SWING_TRIM,
+                                             ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, HIPS_BOBS, RAISED_SWAY_GAIN,
+                                             across_points, amplitude_points, amplitudes, elbow_points, forward_points,
+                                             measure_arm_forwards, measure_arm_swings, measure_elbow_bends,
+                                             measure_hips_bobs, sway_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
@@ -35,7 +36,7 @@ SKELETON = humanoid_skeleton_default()
 
 @needs_data
 @pytest.mark.parametrize("table, measure", [(ARM_SWINGS, measure_arm_swings), (HIPS_BOBS, measure_hips_bobs),
-                                            (ELBOW_BENDS, measure_elbow_bends)])
+                                            (ELBOW_BENDS, measure_elbow_bends), (ARM_FORWARDS, measure_arm_forwards)])
 def test_the_amplitude_tables_are_what_the_training_clips_measure(table, measure):
     measured = measure(D.list_files(DATA))
     assert set(measured) == set(table)
@@ -105,7 +106,7 @@ def test_the_gain_is_one_at_rest_and_the_line_through_its_points():
 
 def arms_of(amplitude: GaitAmplitude, roots, inputs, outputs, mix=None):
     """The arms ``amplitude`` gives these frames (None: unchanged), the roots' heights as the output's."""
-    return amplitude.apply(roots, inputs, outputs, roots[:, 1], mix)[0]
+    return amplitude.apply(roots, inputs, outputs, roots[:, 1], mix, SKELETON.offsets)[0]
 
 
 def swinging(n: int, speed: float, amplitude_deg: float = 20.0, hz: float = 1.0, seed: int = 0):
@@ -436,6 +437,46 @@ def test_a_running_stream_bends_its_elbows_as_the_style_and_a_standing_one_not_a
     assert arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), still_roots, still, still) is None
 
 
+def test_forward_points_take_the_named_styles_share_of_their_own_place_at_the_source_paces():
+    walk, run = (speed / 60 for speed in PACES["normal"])
+    share = ARM_FORWARD_SHARE["active"]
+    points = forward_points("normal", {"active": 1.0})
+    # runs take none of active's place, so the run's point asks for no angle
+    np.testing.assert_allclose(points, [[walk, share[0], ARM_FORWARDS["active"][0]], [run, share[1], 0.0]])
+    assert forward_points("normal", {"active": 0.5, "masculine": 0.5})[0][1:] == pytest.approx(
+        (share[0] / 2, ARM_FORWARDS["active"][0]))
+    assert forward_points("normal", {"masculine": 1.0}) == ()  # a style not named keeps the restyle's
+    assert amplitudes("normal", {"active": 1.0})["arm_forward"] == forward_points("normal", {"active": 1.0})
+
+
+def test_a_walking_stream_carries_its_hands_forward_as_the_style_and_a_standing_one_not_at_all():
+    """Hands swinging about 5 degrees forward of straight down while walking, the style asking
+    for 25 at the walking pace: their mean moves there, their swing about it stays, how far
+    they sit across does not change; at half the share, half way; standing, left alone."""
+    from stylecast.motion.footlock.across import arm_places
+
+    n, settled = 600, slice(240, None)
+    walk = ((2.0, 1.0, 25.0), (5.0, 0.0, 0.0))
+    roots, q = swinging(n, speed=2.0)
+
+    def places(rotations):
+        return arm_places(rotations, SKELETON.offsets)
+
+    own = np.degrees(places(q).forward()[settled])
+    out = arms_of(GaitAmplitude(replace(FEET["input"], arm_forward=walk)), roots, q, q)
+    carried = np.degrees(places(out).forward()[settled])
+    assert abs(own.mean() - 25.0) > 10.0  # a place worth moving
+    assert carried.mean(axis=0) == pytest.approx([25.0, 25.0], abs=1.0)
+    # the swing kept: over the quarter-second low-pass of the other parts (amplitude_tau) the
+    # stride's own swing leaked into the mean and was carried against itself, 15 % wider
+    assert np.ptp(carried, axis=0) == pytest.approx(np.ptp(own, axis=0), rel=0.05)
+    np.testing.assert_allclose(places(out).across(), places(q).across(), atol=1e-9)  # a turn about "across"
+    half = arms_of(GaitAmplitude(replace(FEET["input"], arm_forward=((2.0, 0.5, 25.0), (5.0, 0.0, 0.0)))), roots, q, q)
+    assert np.degrees(places(half).forward()[settled]).mean() == pytest.approx((own.mean() + 25.0) / 2, abs=1.0)
+    still_roots, still = swinging(n, speed=0.0)
+    assert arms_of(GaitAmplitude(replace(FEET["input"], arm_forward=walk)), still_roots, still, still) is None
+
+
 def test_an_elbow_swings_by_the_gain_and_stays_a_hinge():
     """An elbow (``motion.hinges``: it flexes about its Y) bending back and forth while
     walking: its flexion's swing is scaled by the gain about its mean, it bends sideways no
@@ -536,12 +577,14 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     streams = [(bobbing(n, speed), swinging(n, speed, seed=k)[1]) for k, speed in enumerate((2.0, 5.0, 0.0, 2.0))]
     streams.append(waving(n))  # a standing wave, its raised hands' sway scaled
     settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips, arm_across=across, wave_sway=wave,
-                        raise_sway=lift, elbow_bend=bend)
-                for arms, hips, across, wave, lift, bend in
-                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),), ((2.0, 0.0),), (), (), ((1.0, 0.0, 0.0), (5.0, 1.0, 60.0))),
-                 (((2.0, 1.5),), (), ((5.0, 0.5),), ((0.0, 1.5), (2.0, 1.0)), (), ((2.0, 0.5, 30.0),)),
-                 (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8)), (), (), ()), ((), (), (), (), (), ()),
-                 ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0)), ()))]
+                        raise_sway=lift, elbow_bend=bend, arm_forward=forward)
+                for arms, hips, across, wave, lift, bend, forward in
+                ((((2.0, 0.5), (5.0, 2.0)), ((2.0, 0.5),), ((2.0, 0.0),), (), (), ((1.0, 0.0, 0.0), (5.0, 1.0, 60.0)),
+                  ((2.0, 0.5, 20.0), (5.0, 0.0, 0.0))),
+                 (((2.0, 1.5),), (), ((5.0, 0.5),), ((0.0, 1.5), (2.0, 1.0)), (), ((2.0, 0.5, 30.0),),
+                  ((2.0, 1.0, -5.0),)),
+                 (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8)), (), (), (), ()), ((), (), (), (), (), (), ()),
+                 ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0)), (), ()))]
     mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n), np.clip(np.arange(n) / 90.0, 0, 1)]
     whole = []
     for setting, (r, q), m in zip(settings, streams, mixes):
@@ -559,7 +602,8 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     assert np.abs(whole[0][0] - streams[0][1]).max() > 0.01 and np.abs(whole[0][1] - streams[0][0][:, 1]).max() > 0.1
     assert live[0]._moving[2] and live[1]._moving[2]  # the swing across was exercised (the third stands)
     assert live[4]._moving[3:5] == [True, True] and np.abs(whole[4][0] - streams[4][1]).max() > 0.01  # and the sways
-    assert live[0]._moving[5:] == [True, True] and live[1]._moving[5:] == [True, True]  # and the elbows' bend
+    assert live[0]._moving[5:7] == [True, True] and live[1]._moving[5:7] == [True, True]  # and the elbows' bend
+    assert live[0]._moving[7:] == [True, True] and live[1]._moving[7:] == [True, True]  # and the hands carried
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

@@ -1,6 +1,7 @@
 """The hands' swing across the body (``GaitAmplitude``'s third part): where each hand sits
 across the body against its shoulder joint (``hand_across``), and the upper arm turned so
-the hand moves across by a given amount (``move_across``).
+the hand moves across by a given amount (``move_across``); and how far forward the hands are
+carried (``ArmPlaces.forward``, ``forward_turns``: its last part).
 
 Why position space: the multistyle model towards youthful swung its held-out walks' hands
 7.2 cm across the body (``models.metrics.arm_swing_across``), where real youthful walks
@@ -62,6 +63,12 @@ class ArmPlaces(NamedTuple):
         """(n, 2) cm: how far each hand (left, right) sits over its elbow (below: negative)."""
         return self.forearm @ UP
 
+    def forward(self) -> np.ndarray:
+        """(n, 2) radians: how far forward of straight down each hand (left, right) sits from
+        its shoulder joint, in the plane of the hips' forward and up (``forward_turns`` turns it)."""
+        ahead = rot.cross(np.broadcast_to(self.left, self.hand.shape), np.broadcast_to(UP, self.hand.shape))
+        return np.arctan2(np.sum(self.hand * ahead, axis=-1), -(self.hand @ UP))
+
 
 def arm_places(rotations: np.ndarray, offsets: np.ndarray) -> ArmPlaces:
     """(n, J, 4) local rotations and offsets (J, 3) or per row (n, J, 3) -> the arms'
@@ -102,6 +109,14 @@ def move_across(rotations: np.ndarray, offsets: np.ndarray, shift: np.ndarray,
         np.linalg.norm(square, axis=-1, keepdims=True), 1e-9)
     # world axes; a hand moves a few centimetres at an arm's length, far from a half turn
     return turn_upper_arms(rotations, parent, _shortest_arc(_unit(hand), _unit(moved)))
+
+
+def forward_turns(places: ArmPlaces, angle: np.ndarray) -> np.ndarray:
+    """(n, 2, 4) world-axis turns of each upper arm about its joint that carry each hand
+    ``angle`` (n, 2) radians further forward (``ArmPlaces.forward``), exactly: a turn about
+    the level axis towards the humanoid's left keeps how far the hand sits across and turns
+    the rest of its offset in the plane of forward and up."""
+    return rot.exp_map(-angle[..., None] * np.broadcast_to(places.left, places.hand.shape))
 
 
 def turn_upper_arms(rotations: np.ndarray, parent: np.ndarray, turn: np.ndarray) -> np.ndarray:

@@ -33,7 +33,14 @@ the pace, the stream takes the style's amplitudes:
   low-pass in the OUTPUT keeps its swing, and the low-pass is moved a share of the way to the
   style's mean bend (``hinges.add_elbow_flexion``, a hinge still), none standing. The
   generator bends a run's elbows its own way (towards active 103 degrees, real active runs
-  51-91; youthful 50, real 28-37), and the judges took those runs for other styles'.
+  51-91; youthful 50, real 28-37), and the judges took those runs for other styles';
+- the hands carried forward (``arm_forward``, a style's choice): each hand's angle forward of
+  straight down from its shoulder joint in the OUTPUT (``across.ArmPlaces.forward``) keeps its
+  swing about its own low-pass (``FORWARD_TAU``, a slower one), and the low-pass is moved a
+  share of the way to the style's mean, the upper arm turned about the level axis across the
+  body (``across.forward_turns``), none standing. The generator holds active's walks' hands
+  back (5.7 degrees forward, real active walks 19-31), and the judges took those walks for
+  turns.
 
 Each gain goes with the input's low-passed speed over ground (``ContactSettings.arm_swing``,
 ``hips_bob``: 1 standing, the walks' ratio at the source style's walking pace, the runs' at its
@@ -58,7 +65,7 @@ from .. import rotations as rot
 from ..hinges import add_elbow_flexion, elbow_flexion
 from ..humanoid import HUMANOID_BONES
 from ..smoothing import TriplePole, lfilter_one_step, smoothstep, triple_pole
-from .across import ArmPlaces, arm_places, move_across, sway_turns, turn_upper_arms
+from .across import ArmPlaces, arm_places, forward_turns, move_across, sway_turns, turn_upper_arms
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
 
@@ -110,16 +117,33 @@ RAISED_GATE_CM = (5.0, 15.0)
 WAVING_GATE_CM = (2.0, 4.0)
 
 
-# The elbows' bend part's place in ``GaitAmplitude._gains`` (its share, then its pull) and
-# in a frame's extras.
+# The elbows' bend part's and the hands' forward part's places in ``GaitAmplitude._gains``
+# (each its share, then its pull) and in a frame's extras.
 BEND = 5
+FORWARD = BEND + 2
+
+# The forward part's low-pass (frames, of ``ArmPlaces.forward``): over a quarter second
+# (``amplitude_tau``) 15 % of a 1 Hz walk's forward swing leaks into the mean and is carried
+# against itself (the swing 15 % wider, ``tests/test_gait_amplitude.py``), and the carried
+# hands shook: the multistyle model's jerk towards active 1.0988 -> 1.1011 at half of
+# active's forward place (its held-out walks 1.052 -> 1.056; a constant carry left the
+# locomotion's jerk as it was); over 1.5 s, 1.0990 (the model card, "Active carries its
+# hands forward").
+FORWARD_TAU = 45.0
 
 
-def _bend_gains(points) -> tuple[tuple, tuple]:
-    """``ContactSettings.elbow_bend``'s (input speed, share, degrees) -> the points of the
-    bend's share and of its pull (the share times the bend, in radians): two gains that
-    rest at 0 standing and are low-passed apart, both linear in the share, so their ratio
-    eases from one style's bend to another's."""
+def _settled_filter(tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A triple pole over ``tau`` frames: lfilter's (b, a) and its state per unit of a held
+    input (a low-pass started settled)."""
+    b, a = triple_pole(tau)
+    return b, a, lfilter_zi(b, a)[:, None]
+
+
+def _pull_gains(points) -> tuple[tuple, tuple]:
+    """``ContactSettings.elbow_bend``'s or ``arm_forward``'s (input speed, share, degrees) ->
+    the points of the part's share and of its pull (the share times the angle, in radians):
+    two gains that rest at 0 standing and are low-passed apart, both linear in the share, so
+    their ratio eases from one style's angle to another's."""
     return (tuple((speed, share) for speed, share, _ in points),
             tuple((speed, share * math.radians(degrees)) for speed, share, degrees in points))
 
@@ -164,17 +188,22 @@ class GaitAmplitude:
         self._wave = _Gain(settings.wave_sway, settings.pace_tau)
         self._raise = _Gain(settings.raise_sway, settings.pace_tau)
         # the elbows' bend: its share (0 standing) and that share times the bend asked for, in
-        # radians, each low-passed, so a new style or a fade eases both (``_bend_gains``)
+        # radians, each low-passed, so a new style or a fade eases both (``_pull_gains``)
         self._bend_share, self._bend_pull = (_Gain(points, settings.pace_tau, rest=0.0)
-                                             for points in _bend_gains(settings.elbow_bend))
-        self._b, self._a = triple_pole(settings.amplitude_tau)
-        self._settled = lfilter_zi(self._b, self._a)[:, None]  # the state per unit of a held input
+                                             for points in _pull_gains(settings.elbow_bend))
+        # the hands carried forward: the same pair of gains (``arm_forward``)
+        self._forward_share, self._forward_pull = (_Gain(points, settings.pace_tau, rest=0.0)
+                                                   for points in _pull_gains(settings.arm_forward))
         # The low-passes' states, each (3, channels) once started: "arms" of the input arms
         # (``_arm_signal``, CHANNELS), "across" of the hands' places (``_across_signal``, 4),
         # "waving" of the input hands' across swing squared (2), "sway" of each hand's sway
-        # gain - 1 (2, ``_sway_extra``), "bend" of the output elbows' flexion (2)
+        # gain - 1 (2, ``_sway_extra``), "bend" of the output elbows' flexion (2), "forward" of
+        # the output hands' angles forward (2)
         self._states: dict[str, np.ndarray | None] = {"arms": None, "across": None, "waving": None, "sway": None,
-                                                      "bend": None}
+                                                      "bend": None, "forward": None}
+        # each low-pass's filter and settled state (``_settled_filter``), by key
+        taus = dict.fromkeys(self._states, settings.amplitude_tau) | {"forward": FORWARD_TAU}
+        self._filters = {key: _settled_filter(tau) for key, tau in taus.items()}
         self._last: np.ndarray | None = None  # (ARMS, 4): the input arms' last quaternions, sign-aligned
         self._height = TriplePole(settings.amplitude_tau)  # of the output root's height
         self._height_started = False
@@ -182,21 +211,22 @@ class GaitAmplitude:
         self._previous: tuple | None = None  # the last input root's (x, z)
         self._last_step = 0.0  # the input's last horizontal step that was not a teleport
         self._first_step = True  # the stream's first step is yet to come
-        # arms, hips, across, wave, raise, the bend's share and pull: any gain off its rest so
-        # far (else the work is skipped)
+        # arms, hips, across, wave, raise, the bend's share and pull, the forward part's: any
+        # gain off its rest so far (else the work is skipped)
         self._moving = [False] * len(self._gains)
 
     def set_points(self, arm_swing=(), hips_bob=(), arm_across=(), wave_sway=(), raise_sway=(),
-                   elbow_bend=()) -> None:
+                   elbow_bend=(), arm_forward=()) -> None:
         """New amplitudes (a new model, direction or style; () = the input's own), as
-        (input speed cm/frame, gain) points (``elbow_bend``: (speed, share, degrees)); the
-        gains move to them over the low-pass."""
+        (input speed cm/frame, gain) points (``elbow_bend``, ``arm_forward``: (speed, share,
+        degrees)); the gains move to them over the low-pass."""
         self._arms.set_points(arm_swing)
         self._hips.set_points(hips_bob)
         self._across.set_points(arm_across)
         self._wave.set_points(wave_sway)
         self._raise.set_points(raise_sway)
-        for gain, points in zip((self._bend_share, self._bend_pull), _bend_gains(elbow_bend)):
+        for gain, points in zip((self._bend_share, self._bend_pull, self._forward_share, self._forward_pull),
+                                (*_pull_gains(elbow_bend), *_pull_gains(arm_forward))):
             gain.set_points(points)
 
     def gains(self, speed: float) -> tuple[float, float]:
@@ -207,27 +237,29 @@ class GaitAmplitude:
 
     @property
     def active(self) -> tuple[bool, ...]:
-        """Whether the arms', the hips', the across, the wave's, the raise's and the elbows'
-        bend's parts have work (``_gains``' order, the bend's two gains as one): a gain set, or
-        one still easing back to its rest. Their low-passes run only then (a session that never had a
-        gain costs nothing but its speed), and start settled on the frame they start at."""
+        """Whether the arms', the hips', the across, the wave's, the raise's, the elbows' bend's
+        and the forward parts have work (``_gains``' order, the bend's two gains as one, the
+        forward part's too): a gain set, or one still easing back to its rest. Their
+        low-passes run only then (a session that never had a gain costs nothing but its
+        speed), and start settled on the frame they start at."""
         on = [gain.on or moving for gain, moving in zip(self._gains, self._moving)]
-        return (*on[:BEND], on[BEND] or on[BEND + 1])
+        return (*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1])
 
     @property
     def _gains(self) -> tuple[_Gain, ...]:
-        return self._arms, self._hips, self._across, self._wave, self._raise, self._bend_share, self._bend_pull
+        return (self._arms, self._hips, self._across, self._wave, self._raise, self._bend_share, self._bend_pull,
+                self._forward_share, self._forward_pull)
 
     def apply(self, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, heights: np.ndarray,
               mix: np.ndarray | None = None, offsets: np.ndarray | None = None
               ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The next frames in order: input roots (n, 3), input and restyled rotations (n, J, 4),
         the output root's heights (n,), the share of the restyle shown (n,) (None: all of
-        it) and the bone offsets (J, 3) (needed with ``arm_across`` and the sways) -> the
-        outputs with the arms' swing scaled (a new array) and the new heights, each None
-        where nothing changes."""
+        it) and the bone offsets (J, 3) (needed with ``arm_across``, the sways and
+        ``arm_forward``) -> the outputs with the arms' swing scaled (a new array) and the new
+        heights, each None where nothing changes."""
         n = len(roots)
-        arms_on, hips_on, *crossing, bend_on = self.active
+        arms_on, hips_on, *crossing, bend_on, forward_on = self.active
         shown = [1.0] * n if mix is None else np.broadcast_to(mix, (n,)).tolist()
         extra = np.array([self._extras_of_frame(x, z, s) for (x, _, z), s in zip(np.asarray(roots).tolist(), shown)])
         swung = bobbed = None
@@ -253,7 +285,13 @@ class GaitAmplitude:
             current = outputs if swung is None else swung
             mean = self._low_pass("bend", elbow_flexion(current))
             if self._moving[BEND] or self._moving[BEND + 1]:
-                swung = _bent(current, mean, extra[:, BEND:])
+                swung = _bent(current, mean, extra[:, BEND:FORWARD])
+        if forward_on:
+            current = outputs if swung is None else swung
+            places = arm_places(current, offsets)
+            mean = self._low_pass("forward", places.forward())
+            if self._moving[FORWARD] or self._moving[FORWARD + 1]:
+                swung = _carried(current, mean, extra[:, FORWARD:], places)
         return swung, bobbed
 
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
@@ -276,9 +314,10 @@ class GaitAmplitude:
     def _low_pass(self, key: str, signal: np.ndarray) -> np.ndarray:
         """The low-pass ``key`` run over a block's ``signal`` (n, channels), started settled
         on its first frame."""
+        b, a, settled = self._filters[key]
         if self._states[key] is None:
-            self._states[key] = self._settled * signal[0]
-        mean, self._states[key] = lfilter(self._b, self._a, signal, axis=0, zi=self._states[key])
+            self._states[key] = settled * signal[0]
+        mean, self._states[key] = lfilter(b, a, signal, axis=0, zi=self._states[key])
         return mean
 
     def _aligned_to(self, first: np.ndarray) -> np.ndarray:
@@ -352,6 +391,14 @@ def _bent(outputs: np.ndarray, mean: np.ndarray, extra: np.ndarray) -> np.ndarra
     return add_elbow_flexion(outputs, extra[:, 1:2] - extra[:, 0:1] * mean)
 
 
+def _carried(outputs: np.ndarray, mean: np.ndarray, extra: np.ndarray, places: ArmPlaces) -> np.ndarray:
+    """The outputs (n, J, 4) with each hand carried forward the share ``extra[:, 0]`` of the
+    way from its forward angle's low-pass ``mean`` (n, 2, radians) to the angle asked for
+    (``extra[:, 1]``, the share times it), its swing about the mean kept; ``places``: the
+    outputs' arm places."""
+    return turn_upper_arms(outputs, places.parent, forward_turns(places, extra[:, 1:2] - extra[:, 0:1] * mean))
+
+
 def _across_signal(inputs: np.ndarray, outputs: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, ArmPlaces]:
     """(n, 4) cm: each hand's place across the body against its shoulder joint
     (``across.arm_places``), the input's (left, right) then the output's; and the output's
@@ -412,20 +459,24 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
             if g._moving[1]:
                 heights[k] = level + (1.0 + extra[k, 1]) * (height - level)
     _swing_frames(amplitudes, [k for k, (arms_on, *_) in enumerate(active) if arms_on], inputs, outputs, extra)
-    _across_frames(amplitudes, [k for k, (_, _, *crossing, _) in enumerate(active) if any(crossing)], inputs,
+    _across_frames(amplitudes, [k for k, (_, _, *crossing, _, _) in enumerate(active) if any(crossing)], inputs,
                    outputs, extra, offsets)
-    _bend_frames(amplitudes, [k for k, (*_, bend_on) in enumerate(active) if bend_on], outputs, extra)
+    _bend_frames(amplitudes, [k for k, (*_, bend_on, _) in enumerate(active) if bend_on], outputs, extra)
+    _forward_frames(amplitudes, [k for k, (*_, forward_on) in enumerate(active) if forward_on], outputs, extra,
+                    offsets)
 
 
 def _low_pass_streams(streams: list[GaitAmplitude], key: str, signal: np.ndarray) -> np.ndarray:
     """One frame of each stream's low-pass ``key`` in one step: ``signal`` (A, channels), a
     row per stream; each state starts settled on its stream's first frame. The streams share
-    one tau (``amplitude_tau``), so one filter steps them all."""
+    each key's tau (``amplitude_tau``, the forward part's ``FORWARD_TAU``), so one filter
+    steps them all."""
+    b, a, settled = streams[0]._filters[key]
     for g, row in zip(streams, signal):
         if g._states[key] is None:
-            g._states[key] = g._settled * row
+            g._states[key] = settled * row
     state = np.stack([g._states[key] for g in streams], axis=1)  # (3, A, channels)
-    mean, state = lfilter_one_step(streams[0]._b, streams[0]._a, signal, state)
+    mean, state = lfilter_one_step(b, a, signal, state)
     for k, g in enumerate(streams):
         g._states[key] = state[:, k]
     return mean
@@ -483,4 +534,18 @@ def _bend_frames(amplitudes, at, outputs, extra) -> None:
     rows = [i for i, g in enumerate(bending) if g._moving[BEND] or g._moving[BEND + 1]]
     if rows:
         at_rows = [at[i] for i in rows]
-        outputs[at_rows] = _bent(outputs[at_rows], mean[rows], extra[at_rows, BEND:])
+        outputs[at_rows] = _bent(outputs[at_rows], mean[rows], extra[at_rows, BEND:FORWARD])
+
+
+def _forward_frames(amplitudes, at, outputs, extra, offsets) -> None:
+    """``amplitude_frames``' hands carried forward for the streams ``at``, after their elbows' bend."""
+    if not at:
+        return
+    carrying = [amplitudes[k] for k in at]
+    places = arm_places(outputs[at], offsets if offsets.ndim == 2 else offsets[at])
+    mean = _low_pass_streams(carrying, "forward", places.forward())
+    rows = [i for i, g in enumerate(carrying) if g._moving[FORWARD] or g._moving[FORWARD + 1]]
+    if rows:
+        at_rows = [at[i] for i in rows]
+        outputs[at_rows] = _carried(outputs[at_rows], mean[rows], extra[at_rows, FORWARD:],
+                                    ArmPlaces(*(part[rows] for part in places)))

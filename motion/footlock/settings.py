@@ -150,6 +150,11 @@ class ContactSettings:
     # the way from the output's own bend (its low-pass) to the style's, none standing (the
     # arms are the action of a wave or a raise), straight lines between the points.
     elbow_bend: tuple[tuple[float, float, float], ...] = ()
+    # ...and (input speed, share, degrees) of how far forward of straight down the hands are
+    # carried from the shoulders (``models.metrics.arm_forward``), the same way: the share of
+    # the way from the output's own low-passed place to the style's, the upper arms turned
+    # about the level axis across the body, none standing.
+    arm_forward: tuple[tuple[float, float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -247,13 +252,13 @@ def stance_standing_of(restyler, weights=None) -> float:
 
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
 NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
-                 "elbow_bend": ()}
+                 "elbow_bend": (), "arm_forward": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
-    """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``
-    and ``elbow_bend``, by name, with ``restyler`` (towards the style mix ``weights``, where it
-    takes one): () each for a restyler without them."""
+    """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``,
+    ``elbow_bend`` and ``arm_forward``, by name, with ``restyler`` (towards the style mix
+    ``weights``, where it takes one): () each for a restyler without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)
     return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}
