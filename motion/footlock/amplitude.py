@@ -40,7 +40,8 @@ the pace, the stream takes the style's amplitudes:
   share of the way to the style's mean, the upper arm turned about the level axis across the
   body (``across.forward_turns``), none standing. The generator holds active's walks' hands
   back (5.7 degrees forward, real active walks 19-31), and the judges took those walks for
-  turns.
+  turns; it holds feminine's and youthful's runs' further forward than real ones (11 and -9,
+  real -8 to -2 and -21 to -13), and the judges took those runs for other styles'.
 
 Each gain goes with the input's low-passed speed over ground (``ContactSettings.arm_swing``,
 ``hips_bob``: 1 standing, the walks' ratio at the source style's walking pace, the runs' at its
