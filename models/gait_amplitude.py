@@ -14,8 +14,8 @@ style's over the source's, at the source's walking and running paces.
 The tables are measured on the training split only (the held-out files stay unseen), with
 ``measure_arm_swings``, ``measure_hips_bobs``, ``measure_elbow_bends`` (how far the elbows
 bend, which the styles that ask for it take in their runs) and ``measure_arm_forwards`` (how
-far forward the hands are carried, which active takes in its walks);
-``tests/test_gait_amplitude.py`` checks them against the data.
+far forward the hands are carried, which active takes in its walks, feminine and youthful
+in their runs); ``tests/test_gait_amplitude.py`` checks them against the data.
 """
 
 from __future__ import annotations
