@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from typing import NamedTuple
 
 import numpy as np
 from scipy.signal import lfilter, lfilter_zi
@@ -149,6 +150,23 @@ def _pull_gains(points) -> tuple[tuple, tuple]:
             tuple((speed, share * math.radians(degrees)) for speed, share, degrees in points))
 
 
+class Parts(NamedTuple):
+    """Which of ``GaitAmplitude``'s parts have work (``GaitAmplitude.active``)."""
+
+    arms: bool
+    hips: bool
+    across: bool
+    wave: bool  # a raised hand's sway, a wave's
+    lift: bool  # ...a raise's
+    bend: bool
+    forward: bool
+
+    @property
+    def crossing(self) -> bool:
+        """The across part or a sway: the hands moved across the body (``_across_block``)."""
+        return self.across or self.wave or self.lift
+
+
 class _Gain:
     """One amplitude's gain: (speed, gain) points from (0, ``rest``), its g - rest low-passed."""
 
@@ -237,14 +255,14 @@ class GaitAmplitude:
         return self._arms.at(speed), self._hips.at(speed)
 
     @property
-    def active(self) -> tuple[bool, ...]:
+    def active(self) -> Parts:
         """Whether the arms', the hips', the across, the wave's, the raise's, the elbows' bend's
         and the forward parts have work (``_gains``' order, the bend's two gains as one, the
         forward part's too): a gain set, or one still easing back to its rest. Their
         low-passes run only then (a session that never had a gain costs nothing but its
         speed), and start settled on the frame they start at."""
         on = [gain.on or moving for gain, moving in zip(self._gains, self._moving)]
-        return (*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1])
+        return Parts(*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1])
 
     @property
     def _gains(self) -> tuple[_Gain, ...]:
@@ -260,18 +278,18 @@ class GaitAmplitude:
         ``arm_forward``) -> the outputs with the arms' swing scaled (a new array) and the new
         heights, each None where nothing changes."""
         n = len(roots)
-        arms_on, hips_on, *crossing, bend_on, forward_on = self.active
+        parts = self.active
         shown = [1.0] * n if mix is None else np.broadcast_to(mix, (n,)).tolist()
         extra = np.array([self._extras_of_frame(x, z, s) for (x, _, z), s in zip(np.asarray(roots).tolist(), shown)])
         swung = bobbed = None
-        if arms_on:
+        if parts.arms:
             inputs = np.asarray(inputs, np.float64)
             arms = _arm_signal(inputs, self._aligned_to(inputs[0]))
             self._last = arms[-1, :ARMS * 4].reshape(ARMS, 4)
             mean = self._low_pass("arms", arms)
             if self._moving[0]:
                 swung = _swung(arms, mean, extra[:, 0], outputs)
-        if hips_on:
+        if parts.hips:
             heights = np.asarray(heights, np.float64)
             if not self._height_started:
                 self._height_started = True
@@ -279,15 +297,15 @@ class GaitAmplitude:
             level = self._height.run(heights)
             if self._moving[1]:
                 bobbed = level + (1.0 + extra[:, 1]) * (heights - level)
-        if any(crossing):
+        if parts.crossing:
             moved = self._across_block(inputs, outputs if swung is None else swung, extra[:, 2:BEND], offsets)
             swung = swung if moved is None else moved
-        if bend_on:
+        if parts.bend:
             current = outputs if swung is None else swung
             mean = self._low_pass("bend", elbow_flexion(current))
             if self._moving[BEND] or self._moving[BEND + 1]:
                 swung = _bent(current, mean, extra[:, BEND:FORWARD])
-        if forward_on:
+        if parts.forward:
             current = outputs if swung is None else swung
             places = arm_places(current, offsets)
             mean = self._low_pass("forward", places.forward())
@@ -445,13 +463,13 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
     """One frame of each of many streams (the daemon's tick): input roots (P, 3), input and
     restyled rotations (P, J, 4) and output root heights (P,) (``outputs`` and ``heights``
     changed in place), the share shown of each and the bone offsets, (J, 3) or each
-    stream's (P, J, 3) (needed with ``arm_across`` and the sways); the same as each
+    stream's (P, J, 3) (needed with ``arm_across``, the sways and ``arm_forward``); the same as each
     ``apply``, the arms of all in one vectorised pass (per stream, numpy's per-call cost
     would be most of it)."""
     active = [g.active for g in amplitudes]
     extra = np.array([g._extras_of_frame(x, z, f) for g, (x, _, z), f in zip(amplitudes, roots.tolist(), shown)])
-    for k, (g, (_, hips_on, *_)) in enumerate(zip(amplitudes, active)):
-        if hips_on:  # a scalar each: Python floats
+    for k, (g, parts) in enumerate(zip(amplitudes, active)):
+        if parts.hips:  # a scalar each: Python floats
             height = float(heights[k])
             if not g._height_started:
                 g._height_started = True
@@ -459,12 +477,11 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
             level = g._height.step(height)
             if g._moving[1]:
                 heights[k] = level + (1.0 + extra[k, 1]) * (height - level)
-    _swing_frames(amplitudes, [k for k, (arms_on, *_) in enumerate(active) if arms_on], inputs, outputs, extra)
-    _across_frames(amplitudes, [k for k, (_, _, *crossing, _, _) in enumerate(active) if any(crossing)], inputs,
-                   outputs, extra, offsets)
-    _bend_frames(amplitudes, [k for k, (*_, bend_on, _) in enumerate(active) if bend_on], outputs, extra)
-    _forward_frames(amplitudes, [k for k, (*_, forward_on) in enumerate(active) if forward_on], outputs, extra,
-                    offsets)
+    _swing_frames(amplitudes, [k for k, parts in enumerate(active) if parts.arms], inputs, outputs, extra)
+    _across_frames(amplitudes, [k for k, parts in enumerate(active) if parts.crossing], inputs, outputs, extra,
+                   offsets)
+    _bend_frames(amplitudes, [k for k, parts in enumerate(active) if parts.bend], outputs, extra)
+    _forward_frames(amplitudes, [k for k, parts in enumerate(active) if parts.forward], outputs, extra, offsets)
 
 
 def _low_pass_streams(streams: list[GaitAmplitude], key: str, signal: np.ndarray) -> np.ndarray:
