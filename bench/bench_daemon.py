@@ -336,7 +336,9 @@ def bench_footlock(model, motion, runs=5, performers=16):
     # it off, but it is paid for) against the same without it; and with the runs' elbow bend
     # (the elbows' flexion and a low-pass a frame, paid on the walk too) against the same;
     # and with the walks' hands carried forward (the arms' places, a low-pass and a turn of
-    # each upper arm a frame) against the same
+    # each upper arm a frame) against the same; and with still arms held (the input arms'
+    # places, three low-passes and six bones' offsets a frame, paid on the walk too) against
+    # the same
     from stylecast.models.gait_amplitude import amplitudes
 
     youthful, active = (amplitudes("normal", {style: 1.0}) for style in ("youthful", "active"))
@@ -354,7 +356,9 @@ def bench_footlock(model, motion, runs=5, performers=16):
                                    ("stance", {**active, "elbow_bend": (), "arm_forward": ()},
                                     "stance, active, the raises' sway too"),
                                    ("stance", {**active, "arm_forward": ()}, "stance, active, the runs' elbow bend too"),
-                                   ("stance", active, "stance, active, the walks' hands forward too")):
+                                   ("stance", {**active, "still_arms": ()},
+                                    "stance, active, the walks' hands forward too"),
+                                   ("stance", active, "stance, active, still arms held too")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
             each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, overrides)
                                                        for _ in range(runs)]))

@@ -14,9 +14,9 @@ import pytest
 from stylecast.models import data as D
 from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SHARE, ARM_FORWARDS, ARM_SWING_TRIM,
                                              ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, HIPS_BOBS, RAISED_SWAY_GAIN,
-                                             across_points, amplitude_points, amplitudes, elbow_points, forward_points,
-                                             measure_arm_forwards, measure_arm_swings, measure_elbow_bends,
-                                             measure_hips_bobs, sway_points)
+                                             STILL_ARM_SHARE, across_points, amplitude_points, amplitudes, elbow_points,
+                                             forward_points, measure_arm_forwards, measure_arm_swings,
+                                             measure_elbow_bends, measure_hips_bobs, still_points, sway_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
@@ -477,6 +477,66 @@ def test_a_walking_stream_carries_its_hands_forward_as_the_style_and_a_standing_
     assert arms_of(GaitAmplitude(replace(FEET["input"], arm_forward=walk)), still_roots, still, still) is None
 
 
+def test_still_points_take_the_named_styles_share_at_any_speed():
+    share = STILL_ARM_SHARE["feminine"]
+    assert still_points("normal", {"feminine": 1.0}) == ((0.0, share),)
+    # the performer's own style (normal) is named by none: its share of a mix keeps the restyle's motion
+    assert still_points("normal", {"feminine": 0.5, "normal": 0.5})[0][1] == pytest.approx(share / 2)
+    assert still_points("normal", {"normal": 1.0}) == ()
+    assert amplitudes("normal", {"feminine": 1.0})["still_arms"] == still_points("normal", {"feminine": 1.0})
+
+
+def wobbled(q: np.ndarray, wobble_deg: float = 15.0, hz: float = 1.5, posture_deg: float = 20.0,
+            axis=(1.0, 0.0, 0.0)) -> np.ndarray:
+    """A restyle of ``q`` that holds each arm at another posture (upper arms ``posture_deg``
+    about Z, elbows as many more about their rest axis) and wobbles the upper arms about
+    ``axis`` by ``wobble_deg`` at ``hz``: the generator's own motion of an arm the performer
+    holds (or, as an input, arms swinging)."""
+    out = q.copy()
+    wobble = np.radians(wobble_deg) * np.sin(2 * np.pi * hz * np.arange(len(q)) / 60.0)
+    for upper, lower in zip(UPPER_ARM_INDEX, LOWER_ARM_INDEX):
+        posture = rot.exp_map(np.array([0.0, 0.0, np.radians(posture_deg)]))
+        out[:, upper] = rot.multiply(rot.multiply(rot.exp_map(np.outer(wobble, axis)), posture), q[:, upper])
+        out[:, lower] = rot.multiply(rot.exp_map(np.array([0.0, np.radians(posture_deg * 1.25), 0.0])), q[:, lower])
+    return out
+
+
+def test_a_still_hanging_arm_moves_as_the_input_at_the_restyles_posture_and_a_swinging_one_is_left_alone():
+    """The performer's arms held still, the restyle's at another posture and wobbling: held,
+    each arm bone is the input's turned by the restyle's mean offset (the posture kept, the
+    wobble 6 % of what it was, the low-pass's at 1.5 Hz); at half the share, half of the
+    wobble; arms swinging as in a walk, and a stream's first frames, are left as restyled."""
+    n, settled = 600, slice(240, None)
+    roots, q = swinging(n, speed=0.0, amplitude_deg=0.3)
+    out = wobbled(q)
+    still = replace(FEET["input"], still_arms=((0.0, 1.0),))
+    held = arms_of(GaitAmplitude(still), roots, q, out)
+    posture = rot.exp_map(np.array([0.0, 0.0, np.radians(20.0)]))
+
+    def wobble_deg(arms):  # each upper arm's angle from the posture over the input's, degrees
+        aim = rot.multiply(posture, q[:, UPPER_ARM_INDEX])
+        offset = rot.log_map(rot.multiply(arms[:, UPPER_ARM_INDEX], rot.inverse(aim)))
+        return np.degrees(np.linalg.norm(offset, axis=-1))
+
+    assert wobble_deg(out)[settled].max() == pytest.approx(15.0, abs=0.1)
+    assert wobble_deg(held)[settled].max() < 0.08 * 15.0
+    # the elbow's own posture kept (a steady offset), so a hinge stays a hinge
+    elbow = lambda arms: rot.log_map(rot.multiply(arms[:, LOWER_ARM_INDEX], rot.inverse(q[:, LOWER_ARM_INDEX])))
+    np.testing.assert_allclose(elbow(held)[settled], elbow(out)[settled], atol=1e-9)
+    half = arms_of(GaitAmplitude(replace(FEET["input"], still_arms=((0.0, 0.5),))), roots, q, out)
+    assert wobble_deg(half)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
+    # the first frame counts as moving: the hold comes in over the low-passes, not at once
+    assert wobble_deg(held)[:3].max() == pytest.approx(wobble_deg(out)[:3].max(), abs=0.01)
+    walk_roots, walk = swinging(n, speed=2.0)
+    walk = wobbled(walk, wobble_deg=25.0, hz=1.0, posture_deg=0.0, axis=(0.0, 1.0, 0.0))  # hands swinging 75-95 cm/s
+    walk_out = wobbled(walk)
+    np.testing.assert_allclose(arms_of(GaitAmplitude(still), walk_roots, walk, walk_out), walk_out, atol=1e-9)
+    # a raised hand is a raise's or a wave's (the sways), not a hanging one
+    wave_roots, wave = waving(n, sway_deg=0.0)
+    wave_out = wobbled(wave)
+    np.testing.assert_allclose(arms_of(GaitAmplitude(still), wave_roots, wave, wave_out), wave_out, atol=1e-9)
+
+
 def test_an_elbow_swings_by_the_gain_and_stays_a_hinge():
     """An elbow (``motion.hinges``: it flexes about its Y) bending back and forth while
     walking: its flexion's swing is scaled by the gain about its mean, it bends sideways no
@@ -576,6 +636,8 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     n = 240
     streams = [(bobbing(n, speed), swinging(n, speed, seed=k)[1]) for k, speed in enumerate((2.0, 5.0, 0.0, 2.0))]
     streams.append(waving(n))  # a standing wave, its raised hands' sway scaled
+    streams.append(swinging(n, 0.0, amplitude_deg=0.3, seed=5))  # arms held still, restyled to wobble
+    restyled = [q for _, q in streams[:-1]] + [wobbled(streams[-1][1])]
     settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips, arm_across=across, wave_sway=wave,
                         raise_sway=lift, elbow_bend=bend, arm_forward=forward)
                 for arms, hips, across, wave, lift, bend, forward in
@@ -585,15 +647,17 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
                   ((2.0, 1.0, -5.0),)),
                  (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8)), (), (), (), ()), ((), (), (), (), (), (), ()),
                  ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0)), (), ()))]
-    mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n), np.clip(np.arange(n) / 90.0, 0, 1)]
+    settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), arm_forward=((2.0, 0.5, 20.0),)))
+    mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n),
+             np.clip(np.arange(n) / 90.0, 0, 1), np.clip(np.arange(n) / 30.0, 0.0, 1.0)]
     whole = []
-    for setting, (r, q), m in zip(settings, streams, mixes):
-        swung, bobbed = GaitAmplitude(setting).apply(r, q, q, r[:, 1], m, SKELETON.offsets)
-        whole.append((q if swung is None else swung, r[:, 1] if bobbed is None else bobbed))
+    for setting, (r, q), out, m in zip(settings, streams, restyled, mixes):
+        swung, bobbed = GaitAmplitude(setting).apply(r, q, out, r[:, 1], m, SKELETON.offsets)
+        whole.append((out if swung is None else swung, r[:, 1] if bobbed is None else bobbed))
     live = [GaitAmplitude(s) for s in settings]
     for t in range(n):
         inputs = np.stack([q[t] for _, q in streams])
-        outputs, heights = inputs.copy(), np.array([r[t, 1] for r, _ in streams])
+        outputs, heights = np.stack([out[t] for out in restyled]), np.array([r[t, 1] for r, _ in streams])
         amplitude_frames(live, np.stack([r[t] for r, _ in streams]), inputs, outputs, heights, [m[t] for m in mixes],
                          SKELETON.offsets)
         for k in range(len(streams)):
@@ -603,7 +667,8 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     assert live[0]._moving[2] and live[1]._moving[2]  # the swing across was exercised (the third stands)
     assert live[4]._moving[3:5] == [True, True] and np.abs(whole[4][0] - streams[4][1]).max() > 0.01  # and the sways
     assert live[0]._moving[5:7] == [True, True] and live[1]._moving[5:7] == [True, True]  # and the elbows' bend
-    assert live[0]._moving[7:] == [True, True] and live[1]._moving[7:] == [True, True]  # and the hands carried
+    assert live[0]._moving[7:9] == [True, True] and live[1]._moving[7:9] == [True, True]  # and the hands carried
+    assert live[5]._moving[9] and np.abs(whole[5][0] - restyled[5]).max() > 0.01  # and the still arms held
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

@@ -41,7 +41,10 @@ the pace, the stream takes the style's amplitudes:
   body (``across.forward_turns``), none standing. The generator holds active's walks' hands
   back (5.7 degrees forward, real active walks 19-31), and the judges took those walks for
   turns; it holds feminine's and youthful's runs' further forward than real ones (11 and -9,
-  real -8 to -2 and -21 to -13), and the judges took those runs for other styles'.
+  real -8 to -2 and -21 to -13), and the judges took those runs for other styles';
+- still arms (``still_arms``, a style's choice, ``still``): where the performer's hand hangs
+  still, the output arm's offset from the input's is held at its low-pass (the restyle's
+  posture, its motion about it taken away), at any speed over ground.
 
 Each gain goes with the input's low-passed speed over ground (``ContactSettings.arm_swing``,
 ``hips_bob``: 1 standing, the walks' ratio at the source style's walking pace, the runs' at its
@@ -70,6 +73,7 @@ from ..smoothing import TriplePole, lfilter_one_step, smoothstep, triple_pole
 from .across import ArmPlaces, arm_places, forward_turns, move_across, sway_turns, turn_upper_arms
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
+from .still import hand_steps_squared, held, offset_signal, still_gate
 
 # The bones whose swing is scaled as free rotations: the shoulder joints (ball joints). The
 # elbows are hinges (``motion.hinges``): only their flexion's swing is scaled. Scaling the
@@ -123,6 +127,7 @@ WAVING_GATE_CM = (2.0, 4.0)
 # (each its share, then its pull) and in a frame's extras.
 BEND = 5
 FORWARD = BEND + 2
+STILL = FORWARD + 2  # the still arms' share (one gain)
 
 # The forward part's low-pass (frames, of ``ArmPlaces.forward``): over a quarter second
 # (``amplitude_tau``) 15 % of a 1 Hz walk's forward swing leaks into the mean and is carried
@@ -160,6 +165,7 @@ class Parts(NamedTuple):
     lift: bool  # ...a raise's
     bend: bool
     forward: bool
+    still: bool
 
     @property
     def crossing(self) -> bool:
@@ -213,17 +219,23 @@ class GaitAmplitude:
         # the hands carried forward: the same pair of gains (``arm_forward``)
         self._forward_share, self._forward_pull = (_Gain(points, settings.pace_tau, rest=0.0)
                                                    for points in _pull_gains(settings.arm_forward))
+        # the share of a still hanging arm's motion taken away (``still_arms``)
+        self._still = _Gain(settings.still_arms, settings.pace_tau, rest=0.0)
         # The low-passes' states, each (3, channels) once started: "arms" of the input arms
         # (``_arm_signal``, CHANNELS), "across" of the hands' places (``_across_signal``, 4),
         # "waving" of the input hands' across swing squared (2), "sway" of each hand's sway
         # gain - 1 (2, ``_sway_extra``), "bend" of the output elbows' flexion (2), "forward" of
-        # the output hands' angles forward (2)
+        # the output hands' angles forward (2), "steps" of the input hands' squared steps (2),
+        # "still" of their gates (2) and "offset" of the arms' offsets from the input (14)
+        # (``still``)
         self._states: dict[str, np.ndarray | None] = {"arms": None, "across": None, "waving": None, "sway": None,
-                                                      "bend": None, "forward": None}
+                                                      "bend": None, "forward": None, "steps": None, "still": None,
+                                                      "offset": None}
         # each low-pass's filter and settled state (``_settled_filter``), by key
         taus = dict.fromkeys(self._states, settings.amplitude_tau) | {"forward": FORWARD_TAU}
         self._filters = {key: _settled_filter(tau) for key, tau in taus.items()}
         self._last: np.ndarray | None = None  # (ARMS, 4): the input arms' last quaternions, sign-aligned
+        self._last_hands: np.ndarray | None = None  # (2, 3): the input hands' last places (``still``)
         self._height = TriplePole(settings.amplitude_tau)  # of the output root's height
         self._height_started = False
         self._speed = TriplePole(settings.pace_tau)
@@ -235,7 +247,7 @@ class GaitAmplitude:
         self._moving = [False] * len(self._gains)
 
     def set_points(self, arm_swing=(), hips_bob=(), arm_across=(), wave_sway=(), raise_sway=(),
-                   elbow_bend=(), arm_forward=()) -> None:
+                   elbow_bend=(), arm_forward=(), still_arms=()) -> None:
         """New amplitudes (a new model, direction or style; () = the input's own), as
         (input speed cm/frame, gain) points (``elbow_bend``, ``arm_forward``: (speed, share,
         degrees)); the gains move to them over the low-pass."""
@@ -244,6 +256,7 @@ class GaitAmplitude:
         self._across.set_points(arm_across)
         self._wave.set_points(wave_sway)
         self._raise.set_points(raise_sway)
+        self._still.set_points(still_arms)
         for gain, points in zip((self._bend_share, self._bend_pull, self._forward_share, self._forward_pull),
                                 (*_pull_gains(elbow_bend), *_pull_gains(arm_forward))):
             gain.set_points(points)
@@ -256,26 +269,26 @@ class GaitAmplitude:
 
     @property
     def active(self) -> Parts:
-        """Whether the arms', the hips', the across, the wave's, the raise's, the elbows' bend's
-        and the forward parts have work (``_gains``' order, the bend's two gains as one, the
-        forward part's too): a gain set, or one still easing back to its rest. Their
+        """Whether the arms', the hips', the across, the wave's, the raise's, the elbows' bend's,
+        the forward and the still arms' parts have work (``_gains``' order, the bend's two
+        gains as one, the forward part's too): a gain set, or one still easing back to its rest. Their
         low-passes run only then (a session that never had a gain costs nothing but its
         speed), and start settled on the frame they start at."""
         on = [gain.on or moving for gain, moving in zip(self._gains, self._moving)]
-        return Parts(*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1])
+        return Parts(*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1], on[STILL])
 
     @property
     def _gains(self) -> tuple[_Gain, ...]:
         return (self._arms, self._hips, self._across, self._wave, self._raise, self._bend_share, self._bend_pull,
-                self._forward_share, self._forward_pull)
+                self._forward_share, self._forward_pull, self._still)
 
     def apply(self, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, heights: np.ndarray,
               mix: np.ndarray | None = None, offsets: np.ndarray | None = None
               ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The next frames in order: input roots (n, 3), input and restyled rotations (n, J, 4),
         the output root's heights (n,), the share of the restyle shown (n,) (None: all of
-        it) and the bone offsets (J, 3) (needed with ``arm_across``, the sways and
-        ``arm_forward``) -> the outputs with the arms' swing scaled (a new array) and the new
+        it) and the bone offsets (J, 3) (needed with ``arm_across``, the sways, ``arm_forward``
+        and ``still_arms``) -> the outputs with the arms' swing scaled (a new array) and the new
         heights, each None where nothing changes."""
         n = len(roots)
         parts = self.active
@@ -310,7 +323,16 @@ class GaitAmplitude:
             places = arm_places(current, offsets)
             mean = self._low_pass("forward", places.forward())
             if self._moving[FORWARD] or self._moving[FORWARD + 1]:
-                swung = _carried(current, mean, extra[:, FORWARD:], places)
+                swung = _carried(current, mean, extra[:, FORWARD:STILL], places)
+        if parts.still:
+            inputs, current = np.asarray(inputs, np.float64), outputs if swung is None else swung
+            hands = arm_places(inputs, offsets)
+            first = np.full((1, 2, 3), np.nan) if self._last_hands is None else self._last_hands[None]
+            self._last_hands = hands.hand[-1]
+            offset, mean, gate = _still_signals(self._low_pass, inputs, current, hands,
+                                                np.concatenate([first, hands.hand[:-1]]))
+            if self._moving[STILL]:
+                swung = held(inputs, current, offset, mean, extra[:, STILL, None] * gate)
         return swung, bobbed
 
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
@@ -458,13 +480,24 @@ def _swayed(outputs: np.ndarray, swing: np.ndarray, sway: np.ndarray, places: Ar
     return turn_upper_arms(outputs, places.parent, sway_turns(places, sway * swing[:, 2:]))
 
 
+def _still_signals(low_pass, inputs: np.ndarray, outputs: np.ndarray, hands: ArmPlaces, before: np.ndarray):
+    """The still arms' low-passes on rows in order (a block of one stream, or one frame of each
+    of many: ``low_pass(key, signal)`` runs either): ``hands``, the input's arm places, and
+    ``before`` (n, 2, 3), each row's input hands a frame earlier -> the arms' offsets from the
+    input (n, 14), their low-pass, and how still each hand hangs, low-passed (n, 2)."""
+    steps = low_pass("steps", hand_steps_squared(hands.hand, before))
+    gate = low_pass("still", still_gate(steps, hands.raised(), RAISED_GATE_CM))
+    offset = offset_signal(inputs, outputs)
+    return offset, low_pass("offset", offset), gate
+
+
 def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,
                      heights: np.ndarray, shown: list[float], offsets: np.ndarray | None = None) -> None:
     """One frame of each of many streams (the daemon's tick): input roots (P, 3), input and
     restyled rotations (P, J, 4) and output root heights (P,) (``outputs`` and ``heights``
     changed in place), the share shown of each and the bone offsets, (J, 3) or each
-    stream's (P, J, 3) (needed with ``arm_across``, the sways and ``arm_forward``); the same as each
-    ``apply``, the arms of all in one vectorised pass (per stream, numpy's per-call cost
+    stream's (P, J, 3) (needed with ``arm_across``, the sways, ``arm_forward`` and ``still_arms``);
+    the same as each ``apply``, the arms of all in one vectorised pass (per stream, numpy's per-call cost
     would be most of it)."""
     active = [g.active for g in amplitudes]
     extra = np.array([g._extras_of_frame(x, z, f) for g, (x, _, z), f in zip(amplitudes, roots.tolist(), shown)])
@@ -482,6 +515,7 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
                    offsets)
     _bend_frames(amplitudes, [k for k, parts in enumerate(active) if parts.bend], outputs, extra)
     _forward_frames(amplitudes, [k for k, parts in enumerate(active) if parts.forward], outputs, extra, offsets)
+    _still_frames(amplitudes, [k for k, parts in enumerate(active) if parts.still], inputs, outputs, extra, offsets)
 
 
 def _low_pass_streams(streams: list[GaitAmplitude], key: str, signal: np.ndarray) -> np.ndarray:
@@ -565,5 +599,23 @@ def _forward_frames(amplitudes, at, outputs, extra, offsets) -> None:
     rows = [i for i, g in enumerate(carrying) if g._moving[FORWARD] or g._moving[FORWARD + 1]]
     if rows:
         at_rows = [at[i] for i in rows]
-        outputs[at_rows] = _carried(outputs[at_rows], mean[rows], extra[at_rows, FORWARD:],
+        outputs[at_rows] = _carried(outputs[at_rows], mean[rows], extra[at_rows, FORWARD:STILL],
                                     ArmPlaces(*(part[rows] for part in places)))
+
+
+def _still_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
+    """``amplitude_frames``' still arms for the streams ``at``, after their hands carried."""
+    if not at:
+        return
+    streams, frames = [amplitudes[k] for k in at], inputs[at]
+    hands = arm_places(frames, offsets if offsets.ndim == 2 else offsets[at])
+    before = np.stack([np.full((2, 3), np.nan) if g._last_hands is None else g._last_hands for g in streams])
+    for g, h in zip(streams, hands.hand):
+        g._last_hands = h
+    offset, mean, gate = _still_signals(lambda key, signal: _low_pass_streams(streams, key, signal), frames,
+                                        outputs[at], hands, before)
+    rows = [i for i, g in enumerate(streams) if g._moving[STILL]]
+    if rows:
+        at_rows = [at[i] for i in rows]
+        outputs[at_rows] = held(frames[rows], outputs[at_rows], offset[rows], mean[rows],
+                                extra[at_rows, STILL, None] * gate[rows])

@@ -155,6 +155,11 @@ class ContactSettings:
     # the way from the output's own low-passed place to the style's, the upper arms turned
     # about the level axis across the body, none standing.
     arm_forward: tuple[tuple[float, float, float], ...] = ()
+    # ...and (input speed, share) of a still hanging arm's motion taken away (``still``): where
+    # the performer's hand hangs still, the share of the way from the output arm's offset
+    # from the input's to its low-pass (the restyle's posture, without the generator's own
+    # motion about it).
+    still_arms: tuple[tuple[float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -252,12 +257,12 @@ def stance_standing_of(restyler, weights=None) -> float:
 
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
 NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
-                 "elbow_bend": (), "arm_forward": ()}
+                 "elbow_bend": (), "arm_forward": (), "still_arms": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
     """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``,
-    ``elbow_bend`` and ``arm_forward``, by name, with ``restyler`` (towards the style mix
+    ``elbow_bend``, ``arm_forward`` and ``still_arms``, by name, with ``restyler`` (towards the style mix
     ``weights``, where it takes one): () each for a restyler without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)
