@@ -67,6 +67,16 @@ def run_real(restyler, seconds: float, until=None, **config) -> tuple[Daemon, li
     return daemon, changes
 
 
+def assert_late_only_where_the_delay_rose(changes, late_frames: int) -> None:
+    """Late frames may appear only in a stretch the planner answered by raising the delay:
+    the slow spell itself, or a shared machine's own stall (CI, 2026-12-07: 50 -> 52 late
+    while at 6, then raised to 7). None after a lowering left alone, and none after the last
+    change, the lowering back to the preset's."""
+    for (before, late_before), (after, late_after) in zip(changes, changes[1:]):
+        assert late_after == late_before or after > before, changes
+    assert late_frames == changes[-1][1], changes
+
+
 def test_presets_set_hop_and_delay_and_flags_override_them():
     cfg = build_config({}, {})
     assert (cfg.latency, cfg.hop, cfg.delay) == ("default", 4, 5)
@@ -228,11 +238,11 @@ def test_after_a_one_off_stall_the_delay_comes_back_although_every_result_takes_
     # as soon as the delay is back, about 10 s on a quiet machine).
     daemon, changes = run_real(StallOnce(0.015), 90.0, until=recovered)
     s = daemon.sessions[0]
-    delays, late = [d for d, _ in changes], [n for _, n in changes]
+    delays = [d for d, _ in changes]
     assert max(delays) > 5, daemon.delay_notes  # the stall raised it
     assert daemon.settings.delay == 5 == s.settings.delay, daemon.delay_notes  # and it came back
     assert slack_for(min(daemon.worker.planner.ready_after)) == 2  # never two frames to spare
-    assert s.blender.late_frames == late[delays.index(max(delays))]  # the stall's words only
+    assert_late_only_where_the_delay_rose(changes, s.blender.late_frames)  # the stall's words only
 
 
 def test_after_a_slow_spell_the_delay_comes_back_down_to_the_presets_without_late_words(monkeypatch):
@@ -252,7 +262,7 @@ def test_after_a_slow_spell_the_delay_comes_back_down_to_the_presets_without_lat
         return back[-2:] == [True, True]
 
     daemon, changes = run_real(SleepyRestyler(0.045, slow_from=4, slow_until=60), 45.0, until=recovered)
-    delays, late = [d for d, _ in changes], [n for _, n in changes]
+    delays = [d for d, _ in changes]
     s = daemon.sessions[0]
     raised = [line for line in daemon.delay_notes if "raised" in line]
     lowered = [line for line in daemon.delay_notes if "lowered" in line]
@@ -268,7 +278,7 @@ def test_after_a_slow_spell_the_delay_comes_back_down_to_the_presets_without_lat
     assert len(lowered) == sum(step < 0 for step in steps), (lowered, delays)
     assert "delay lowered from" in lowered[0] and "frame skipped" in lowered[0]
     assert s.skipped >= len(lowered)
-    assert s.blender.late_frames == late[delays.index(top)], (late, delays)  # lowering made none late
+    assert_late_only_where_the_delay_rose(changes, s.blender.late_frames)  # lowering made none late
 
 
 @pytest.mark.parametrize("name", ["normal2exhausted", "multistyle"])
