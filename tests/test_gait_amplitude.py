@@ -14,9 +14,11 @@ import pytest
 from stylecast.models import data as D
 from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SHARE, ARM_FORWARDS, ARM_SWING_TRIM,
                                              ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, HIPS_BOBS, RAISED_SWAY_GAIN,
-                                             STILL_ARM_SHARE, across_points, amplitude_points, amplitudes, elbow_points,
-                                             forward_points, measure_arm_forwards, measure_arm_swings,
-                                             measure_elbow_bends, measure_hips_bobs, still_points, sway_points)
+                                             STILL_ARM_SHARE, WAVING_ARM_SHARE, across_points, amplitude_points,
+                                             amplitudes, elbow_points, forward_points, measure_arm_forwards,
+                                             measure_arm_swings,
+                                             measure_elbow_bends, measure_hips_bobs, still_points, sway_points,
+                                             waving_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
@@ -484,6 +486,11 @@ def test_still_points_take_the_named_styles_share_at_any_speed():
     assert still_points("normal", {"feminine": 0.5, "normal": 0.5})[0][1] == pytest.approx(share / 2)
     assert still_points("normal", {"normal": 1.0}) == ()
     assert amplitudes("normal", {"feminine": 1.0})["still_arms"] == still_points("normal", {"feminine": 1.0})
+    assert waving_points("normal", {"youthful": 1.0}) == ((0.0, WAVING_ARM_SHARE["youthful"]),)
+    assert waving_points("normal", {"youthful": 0.5, "active": 0.5})[0][1] == pytest.approx(
+        WAVING_ARM_SHARE["youthful"] / 2)
+    assert waving_points("normal", {"active": 1.0}) == ()
+    assert amplitudes("normal", {"youthful": 1.0})["waving_arms"] == waving_points("normal", {"youthful": 1.0})
 
 
 def wobbled(q: np.ndarray, wobble_deg: float = 15.0, hz: float = 1.5, posture_deg: float = 20.0,
@@ -535,6 +542,37 @@ def test_a_still_hanging_arm_moves_as_the_input_at_the_restyles_posture_and_a_sw
     wave_roots, wave = waving(n, sway_deg=0.0)
     wave_out = wobbled(wave)
     np.testing.assert_allclose(arms_of(GaitAmplitude(still), wave_roots, wave, wave_out), wave_out, atol=1e-9)
+
+
+def test_a_waving_arm_moves_as_the_input_at_the_restyles_posture_and_a_raised_still_one_is_left_alone():
+    """The performer waves both hands (20 degrees at 2 Hz), the restyle holds the arms at
+    another posture and wobbles them (1.5 Hz): held, each arm bone is the input's turned by
+    the restyle's mean offset (the performer's wave kept, the restyle's wobble 6 % of what it
+    was, the low-pass's at 1.5 Hz); half the share, half; a raise (the hands held up still)
+    and hanging arms are left as restyled."""
+    n, settled = 600, slice(240, None)
+    roots, q = waving(n, sway_deg=20.0, hz=2.0)
+    out = wobbled(q)
+    waves = replace(FEET["input"], waving_arms=((0.0, 1.0),))
+    held = arms_of(GaitAmplitude(waves), roots, q, out)
+    posture = rot.exp_map(np.array([0.0, 0.0, np.radians(20.0)]))
+
+    def wobble_deg(arms):  # each upper arm's angle from the posture over the input's, degrees
+        aim = rot.multiply(posture, q[:, UPPER_ARM_INDEX])
+        offset = rot.log_map(rot.multiply(arms[:, UPPER_ARM_INDEX], rot.inverse(aim)))
+        return np.degrees(np.linalg.norm(offset, axis=-1))
+
+    assert wobble_deg(out)[settled].max() == pytest.approx(15.0, abs=0.1)
+    assert wobble_deg(held)[settled].max() < 0.08 * 15.0
+    half = arms_of(GaitAmplitude(replace(FEET["input"], waving_arms=((0.0, 0.5),))), roots, q, out)
+    assert wobble_deg(half)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
+    raise_roots, raised = waving(n, sway_deg=0.0)
+    raised_out = wobbled(raised)
+    np.testing.assert_allclose(arms_of(GaitAmplitude(waves), raise_roots, raised, raised_out), raised_out, atol=1e-9)
+    hang_roots, hanging = swinging(n, speed=0.0, amplitude_deg=0.3)
+    hanging_out = wobbled(hanging)
+    np.testing.assert_allclose(arms_of(GaitAmplitude(waves), hang_roots, hanging, hanging_out), hanging_out,
+                               atol=1e-9)
 
 
 def test_an_elbow_swings_by_the_gain_and_stays_a_hinge():
@@ -637,7 +675,8 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     streams = [(bobbing(n, speed), swinging(n, speed, seed=k)[1]) for k, speed in enumerate((2.0, 5.0, 0.0, 2.0))]
     streams.append(waving(n))  # a standing wave, its raised hands' sway scaled
     streams.append(swinging(n, 0.0, amplitude_deg=0.3, seed=5))  # arms held still, restyled to wobble
-    restyled = [q for _, q in streams[:-1]] + [wobbled(streams[-1][1])]
+    streams.append(waving(n, hz=1.0, seed=6))  # a wave, restyled to wobble
+    restyled = [q for _, q in streams[:-2]] + [wobbled(q) for _, q in streams[-2:]]
     settings = [replace(FEET["input"], arm_swing=arms, hips_bob=hips, arm_across=across, wave_sway=wave,
                         raise_sway=lift, elbow_bend=bend, arm_forward=forward)
                 for arms, hips, across, wave, lift, bend, forward in
@@ -648,8 +687,10 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
                  (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8)), (), (), (), ()), ((), (), (), (), (), (), ()),
                  ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0)), (), ()))]
     settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), arm_forward=((2.0, 0.5, 20.0),)))
+    settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), waving_arms=((0.0, 1.0),)))
     mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n),
-             np.clip(np.arange(n) / 90.0, 0, 1), np.clip(np.arange(n) / 30.0, 0.0, 1.0)]
+             np.clip(np.arange(n) / 90.0, 0, 1), np.clip(np.arange(n) / 30.0, 0.0, 1.0),
+             np.clip(np.arange(n) / 45.0, 0.0, 1.0)]
     whole = []
     for setting, (r, q), out, m in zip(settings, streams, restyled, mixes):
         swung, bobbed = GaitAmplitude(setting).apply(r, q, out, r[:, 1], m, SKELETON.offsets)
@@ -669,6 +710,7 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     assert live[0]._moving[5:7] == [True, True] and live[1]._moving[5:7] == [True, True]  # and the elbows' bend
     assert live[0]._moving[7:9] == [True, True] and live[1]._moving[7:9] == [True, True]  # and the hands carried
     assert live[5]._moving[9] and np.abs(whole[5][0] - restyled[5]).max() > 0.01  # and the still arms held
+    assert live[6]._moving[10] and np.abs(whole[6][0] - restyled[6]).max() > 0.01  # and the waving arms held
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

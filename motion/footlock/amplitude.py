@@ -44,7 +44,9 @@ the pace, the stream takes the style's amplitudes:
   real -8 to -2 and -21 to -13), and the judges took those runs for other styles';
 - still arms (``still_arms``, a style's choice, ``still``): where the performer's hand hangs
   still, the output arm's offset from the input's is held at its low-pass (the restyle's
-  posture, its motion about it taken away), at any speed over ground.
+  posture, its motion about it taken away), at any speed over ground; and (``waving_arms``)
+  where the performer's raised hand waves, the same hold (the restyle's posture, the
+  performer's wave).
 
 Each gain goes with the input's low-passed speed over ground (``ContactSettings.arm_swing``,
 ``hips_bob``: 1 standing, the walks' ratio at the source style's walking pace, the runs' at its
@@ -73,7 +75,7 @@ from ..smoothing import TriplePole, lfilter_one_step, smoothstep, triple_pole
 from .across import ArmPlaces, arm_places, forward_turns, move_across, sway_turns, turn_upper_arms
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
-from .still import hand_steps_squared, held, offset_signal, still_gate
+from .still import hand_steps_squared, held, offset_signal, still_gate, waving_gate
 
 # The bones whose swing is scaled as free rotations: the shoulder joints (ball joints). The
 # elbows are hinges (``motion.hinges``): only their flexion's swing is scaled. Scaling the
@@ -128,6 +130,7 @@ WAVING_GATE_CM = (2.0, 4.0)
 BEND = 5
 FORWARD = BEND + 2
 STILL = FORWARD + 2  # the still arms' share (one gain)
+WAVING = STILL + 1  # the waving arms' share (one gain)
 
 # The forward part's low-pass (frames, of ``ArmPlaces.forward``): over a quarter second
 # (``amplitude_tau``) 15 % of a 1 Hz walk's forward swing leaks into the mean and is carried
@@ -221,16 +224,20 @@ class GaitAmplitude:
                                                    for points in _pull_gains(settings.arm_forward))
         # the share of a still hanging arm's motion taken away (``still_arms``)
         self._still = _Gain(settings.still_arms, settings.pace_tau, rest=0.0)
+        # ...and of a waving arm's (``waving_arms``)
+        self._waving = _Gain(settings.waving_arms, settings.pace_tau, rest=0.0)
         # The low-passes' states, each (3, channels) once started: "arms" of the input arms
         # (``_arm_signal``, CHANNELS), "across" of the hands' places (``_across_signal``, 4),
         # "waving" of the input hands' across swing squared (2), "sway" of each hand's sway
         # gain - 1 (2, ``_sway_extra``), "bend" of the output elbows' flexion (2), "forward" of
         # the output hands' angles forward (2), "steps" of the input hands' squared steps (2),
-        # "still" of their gates (2) and "offset" of the arms' offsets from the input (14)
-        # (``still``)
+        # "still" of their gates (2), "offset" of the arms' offsets from the input (14), and
+        # "hold_across" of the input hands' places across (2), "hold_waving" of their swing
+        # about it squared (2) and "waves" of the waving arms' gates (2) (``still``)
         self._states: dict[str, np.ndarray | None] = {"arms": None, "across": None, "waving": None, "sway": None,
                                                       "bend": None, "forward": None, "steps": None, "still": None,
-                                                      "offset": None}
+                                                      "offset": None, "hold_across": None, "hold_waving": None,
+                                                      "waves": None}
         # each low-pass's filter and settled state (``_settled_filter``), by key
         taus = dict.fromkeys(self._states, settings.amplitude_tau) | {"forward": FORWARD_TAU}
         self._filters = {key: _settled_filter(tau) for key, tau in taus.items()}
@@ -242,12 +249,13 @@ class GaitAmplitude:
         self._previous: tuple | None = None  # the last input root's (x, z)
         self._last_step = 0.0  # the input's last horizontal step that was not a teleport
         self._first_step = True  # the stream's first step is yet to come
-        # arms, hips, across, wave, raise, the bend's share and pull, the forward part's: any
+        # arms, hips, across, wave, raise, the bend's share and pull, the forward part's, the
+        # still and the waving arms': any
         # gain off its rest so far (else the work is skipped)
         self._moving = [False] * len(self._gains)
 
     def set_points(self, arm_swing=(), hips_bob=(), arm_across=(), wave_sway=(), raise_sway=(),
-                   elbow_bend=(), arm_forward=(), still_arms=()) -> None:
+                   elbow_bend=(), arm_forward=(), still_arms=(), waving_arms=()) -> None:
         """New amplitudes (a new model, direction or style; () = the input's own), as
         (input speed cm/frame, gain) points (``elbow_bend``, ``arm_forward``: (speed, share,
         degrees)); the gains move to them over the low-pass."""
@@ -257,6 +265,7 @@ class GaitAmplitude:
         self._wave.set_points(wave_sway)
         self._raise.set_points(raise_sway)
         self._still.set_points(still_arms)
+        self._waving.set_points(waving_arms)
         for gain, points in zip((self._bend_share, self._bend_pull, self._forward_share, self._forward_pull),
                                 (*_pull_gains(elbow_bend), *_pull_gains(arm_forward))):
             gain.set_points(points)
@@ -271,16 +280,17 @@ class GaitAmplitude:
     def active(self) -> Parts:
         """Whether the arms', the hips', the across, the wave's, the raise's, the elbows' bend's,
         the forward and the still arms' parts have work (``_gains``' order, the bend's two
-        gains as one, the forward part's too): a gain set, or one still easing back to its rest. Their
+        gains as one, the forward part's too, the still and the waving arms' too): a gain set,
+        or one still easing back to its rest. Their
         low-passes run only then (a session that never had a gain costs nothing but its
         speed), and start settled on the frame they start at."""
         on = [gain.on or moving for gain, moving in zip(self._gains, self._moving)]
-        return Parts(*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1], on[STILL])
+        return Parts(*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1], on[STILL] or on[WAVING])
 
     @property
     def _gains(self) -> tuple[_Gain, ...]:
         return (self._arms, self._hips, self._across, self._wave, self._raise, self._bend_share, self._bend_pull,
-                self._forward_share, self._forward_pull, self._still)
+                self._forward_share, self._forward_pull, self._still, self._waving)
 
     def apply(self, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, heights: np.ndarray,
               mix: np.ndarray | None = None, offsets: np.ndarray | None = None
@@ -329,10 +339,10 @@ class GaitAmplitude:
             hands = arm_places(inputs, offsets)
             first = np.full((1, 2, 3), np.nan) if self._last_hands is None else self._last_hands[None]
             self._last_hands = hands.hand[-1]
-            offset, mean, gate = _still_signals(self._low_pass, inputs, current, hands,
-                                                np.concatenate([first, hands.hand[:-1]]))
-            if self._moving[STILL]:
-                swung = held(inputs, current, offset, mean, extra[:, STILL, None] * gate)
+            offset, mean, weight = _still_signals(self._low_pass, inputs, current, hands,
+                                                  np.concatenate([first, hands.hand[:-1]]), extra)
+            if self._moving[STILL] or self._moving[WAVING]:
+                swung = held(inputs, current, offset, mean, weight)
         return swung, bobbed
 
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
@@ -480,15 +490,23 @@ def _swayed(outputs: np.ndarray, swing: np.ndarray, sway: np.ndarray, places: Ar
     return turn_upper_arms(outputs, places.parent, sway_turns(places, sway * swing[:, 2:]))
 
 
-def _still_signals(low_pass, inputs: np.ndarray, outputs: np.ndarray, hands: ArmPlaces, before: np.ndarray):
-    """The still arms' low-passes on rows in order (a block of one stream, or one frame of each
-    of many: ``low_pass(key, signal)`` runs either): ``hands``, the input's arm places, and
-    ``before`` (n, 2, 3), each row's input hands a frame earlier -> the arms' offsets from the
-    input (n, 14), their low-pass, and how still each hand hangs, low-passed (n, 2)."""
+def _still_signals(low_pass, inputs: np.ndarray, outputs: np.ndarray, hands: ArmPlaces, before: np.ndarray,
+                   extra: np.ndarray):
+    """The still and the waving arms' low-passes on rows in order (a block of one stream, or one
+    frame of each of many: ``low_pass(key, signal)`` runs either): ``hands``, the input's arm
+    places, ``before`` (n, 2, 3), each row's input hands a frame earlier, and ``extra`` (n,
+    extras), the rows' gains -> the arms' offsets from the input (n, 14), their low-pass, and
+    how far each arm is held (n, 2): its share times its gate, low-passed, where its hand hangs
+    still or waves (the one excludes the other: a waving hand is raised, a still one not)."""
     steps = low_pass("steps", hand_steps_squared(hands.hand, before))
-    gate = low_pass("still", still_gate(steps, hands.raised(), RAISED_GATE_CM))
+    raised = hands.raised()
+    gate = low_pass("still", still_gate(steps, raised, RAISED_GATE_CM))
+    across = hands.across()
+    waving = low_pass("hold_waving", (across - low_pass("hold_across", across)) ** 2)
+    waves = low_pass("waves", waving_gate(raised, waving, RAISED_GATE_CM))
     offset = offset_signal(inputs, outputs)
-    return offset, low_pass("offset", offset), gate
+    weight = np.minimum(extra[:, STILL, None] * gate + extra[:, WAVING, None] * waves, 1.0)
+    return offset, low_pass("offset", offset), weight
 
 
 def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,
@@ -612,10 +630,9 @@ def _still_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
     before = np.stack([np.full((2, 3), np.nan) if g._last_hands is None else g._last_hands for g in streams])
     for g, h in zip(streams, hands.hand):
         g._last_hands = h
-    offset, mean, gate = _still_signals(lambda key, signal: _low_pass_streams(streams, key, signal), frames,
-                                        outputs[at], hands, before)
-    rows = [i for i, g in enumerate(streams) if g._moving[STILL]]
+    offset, mean, weight = _still_signals(lambda key, signal: _low_pass_streams(streams, key, signal), frames,
+                                          outputs[at], hands, before, extra[at])
+    rows = [i for i, g in enumerate(streams) if g._moving[STILL] or g._moving[WAVING]]
     if rows:
         at_rows = [at[i] for i in rows]
-        outputs[at_rows] = held(frames[rows], outputs[at_rows], offset[rows], mean[rows],
-                                extra[at_rows, STILL, None] * gate[rows])
+        outputs[at_rows] = held(frames[rows], outputs[at_rows], offset[rows], mean[rows], weight[rows])

@@ -160,6 +160,9 @@ class ContactSettings:
     # from the input's to its low-pass (the restyle's posture, without the generator's own
     # motion about it).
     still_arms: tuple[tuple[float, float], ...] = ()
+    # ...and (input speed, share) of a waving arm's own motion taken away (``still``): where
+    # the performer's raised hand sways across, the same share of the way to the low-pass.
+    waving_arms: tuple[tuple[float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -257,13 +260,13 @@ def stance_standing_of(restyler, weights=None) -> float:
 
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
 NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
-                 "elbow_bend": (), "arm_forward": (), "still_arms": ()}
+                 "elbow_bend": (), "arm_forward": (), "still_arms": (), "waving_arms": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
     """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``,
-    ``elbow_bend``, ``arm_forward`` and ``still_arms``, by name, with ``restyler`` (towards the style mix
-    ``weights``, where it takes one): () each for a restyler without them."""
+    ``elbow_bend``, ``arm_forward``, ``still_arms`` and ``waving_arms``, by name, with ``restyler``
+    (towards the style mix ``weights``, where it takes one): () each for a restyler without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)
     return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}
