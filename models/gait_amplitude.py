@@ -174,11 +174,13 @@ STILL_ARM_SHARE = dict.fromkeys(("active", "elderly", "exhausted", "feminine", "
 WAVING_ARM_SHARE = {"masculine": 1.0, "youthful": 1.0}
 
 
-def _share_points(shares: Mapping[str, float], target: Mapping[str, float]) -> tuple[tuple[float, float], ...]:
+def _share_points(shares: Mapping[str, float], source: str, target: Mapping[str, float]
+                  ) -> tuple[tuple[float, float], ...]:
     """The mix ``target``'s share of ``shares`` (none for a style not named) at any speed; ()
-    where it is none."""
+    where it is none or the source style is not known (a style read word by word, ``auto``,
+    leaves every amplitude to the performer, as the other parts do)."""
     mix = {style: weight for style, weight in target.items() if weight > 0}
-    if not mix:
+    if source not in PACES or not mix:
         return ()
     share = sum(weight * shares.get(style, 0.0) for style, weight in mix.items()) / sum(mix.values())
     return ((0.0, float(share)),) if share > 0.0 else ()
@@ -187,13 +189,13 @@ def _share_points(shares: Mapping[str, float], target: Mapping[str, float]) -> t
 def still_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float], ...]:
     """``ContactSettings.still_arms`` for input of style ``source`` restyled towards the mix
     ``target``: the mix's ``STILL_ARM_SHARE``."""
-    return _share_points(STILL_ARM_SHARE, target)
+    return _share_points(STILL_ARM_SHARE, source, target)
 
 
 def waving_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float], ...]:
     """``ContactSettings.waving_arms`` for input of style ``source`` restyled towards the mix
     ``target``: the mix's ``WAVING_ARM_SHARE``."""
-    return _share_points(WAVING_ARM_SHARE, target)
+    return _share_points(WAVING_ARM_SHARE, source, target)
 
 
 def elbow_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float, float], ...]:

@@ -490,6 +490,8 @@ def test_still_points_take_the_named_styles_share_at_any_speed():
     assert waving_points("normal", {"youthful": 0.5, "active": 0.5})[0][1] == pytest.approx(
         WAVING_ARM_SHARE["youthful"] / 2)
     assert waving_points("normal", {"active": 1.0}) == ()
+    # a style read word by word leaves the arms to the performer, as every other amplitude
+    assert still_points("auto", {"feminine": 1.0}) == waving_points("auto", {"youthful": 1.0}) == ()
     assert amplitudes("normal", {"youthful": 1.0})["waving_arms"] == waving_points("normal", {"youthful": 1.0})
 
 
@@ -508,6 +510,13 @@ def wobbled(q: np.ndarray, wobble_deg: float = 15.0, hz: float = 1.5, posture_de
     return out
 
 
+def wobble_deg(arms: np.ndarray, inputs: np.ndarray, posture_deg: float = 20.0) -> np.ndarray:
+    """(n, 2) each upper arm's angle (degrees) from ``wobbled``'s posture over the input's:
+    the restyle's own motion about its posture, what the still and waving holds take away."""
+    aim = rot.multiply(rot.exp_map(np.array([0.0, 0.0, np.radians(posture_deg)])), inputs[:, UPPER_ARM_INDEX])
+    return np.degrees(np.linalg.norm(rot.log_map(rot.multiply(arms[:, UPPER_ARM_INDEX], rot.inverse(aim))), axis=-1))
+
+
 def test_a_still_hanging_arm_moves_as_the_input_at_the_restyles_posture_and_a_swinging_one_is_left_alone():
     """The performer's arms held still, the restyle's at another posture and wobbling: held,
     each arm bone is the input's turned by the restyle's mean offset (the posture kept, the
@@ -518,22 +527,15 @@ def test_a_still_hanging_arm_moves_as_the_input_at_the_restyles_posture_and_a_sw
     out = wobbled(q)
     still = replace(FEET["input"], still_arms=((0.0, 1.0),))
     held = arms_of(GaitAmplitude(still), roots, q, out)
-    posture = rot.exp_map(np.array([0.0, 0.0, np.radians(20.0)]))
-
-    def wobble_deg(arms):  # each upper arm's angle from the posture over the input's, degrees
-        aim = rot.multiply(posture, q[:, UPPER_ARM_INDEX])
-        offset = rot.log_map(rot.multiply(arms[:, UPPER_ARM_INDEX], rot.inverse(aim)))
-        return np.degrees(np.linalg.norm(offset, axis=-1))
-
-    assert wobble_deg(out)[settled].max() == pytest.approx(15.0, abs=0.1)
-    assert wobble_deg(held)[settled].max() < 0.08 * 15.0
+    assert wobble_deg(out, q)[settled].max() == pytest.approx(15.0, abs=0.1)
+    assert wobble_deg(held, q)[settled].max() < 0.08 * 15.0
     # the elbow's own posture kept (a steady offset), so a hinge stays a hinge
     elbow = lambda arms: rot.log_map(rot.multiply(arms[:, LOWER_ARM_INDEX], rot.inverse(q[:, LOWER_ARM_INDEX])))
     np.testing.assert_allclose(elbow(held)[settled], elbow(out)[settled], atol=1e-9)
     half = arms_of(GaitAmplitude(replace(FEET["input"], still_arms=((0.0, 0.5),))), roots, q, out)
-    assert wobble_deg(half)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
+    assert wobble_deg(half, q)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
     # the first frame counts as moving: the hold comes in over the low-passes, not at once
-    assert wobble_deg(held)[:3].max() == pytest.approx(wobble_deg(out)[:3].max(), abs=0.01)
+    assert wobble_deg(held, q)[:3].max() == pytest.approx(wobble_deg(out, q)[:3].max(), abs=0.01)
     walk_roots, walk = swinging(n, speed=2.0)
     walk = wobbled(walk, wobble_deg=25.0, hz=1.0, posture_deg=0.0, axis=(0.0, 1.0, 0.0))  # hands swinging 75-95 cm/s
     walk_out = wobbled(walk)
@@ -555,17 +557,10 @@ def test_a_waving_arm_moves_as_the_input_at_the_restyles_posture_and_a_raised_st
     out = wobbled(q)
     waves = replace(FEET["input"], waving_arms=((0.0, 1.0),))
     held = arms_of(GaitAmplitude(waves), roots, q, out)
-    posture = rot.exp_map(np.array([0.0, 0.0, np.radians(20.0)]))
-
-    def wobble_deg(arms):  # each upper arm's angle from the posture over the input's, degrees
-        aim = rot.multiply(posture, q[:, UPPER_ARM_INDEX])
-        offset = rot.log_map(rot.multiply(arms[:, UPPER_ARM_INDEX], rot.inverse(aim)))
-        return np.degrees(np.linalg.norm(offset, axis=-1))
-
-    assert wobble_deg(out)[settled].max() == pytest.approx(15.0, abs=0.1)
-    assert wobble_deg(held)[settled].max() < 0.08 * 15.0
+    assert wobble_deg(out, q)[settled].max() == pytest.approx(15.0, abs=0.1)
+    assert wobble_deg(held, q)[settled].max() < 0.08 * 15.0
     half = arms_of(GaitAmplitude(replace(FEET["input"], waving_arms=((0.0, 0.5),))), roots, q, out)
-    assert wobble_deg(half)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
+    assert wobble_deg(half, q)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
     raise_roots, raised = waving(n, sway_deg=0.0)
     raised_out = wobbled(raised)
     np.testing.assert_allclose(arms_of(GaitAmplitude(waves), raise_roots, raised, raised_out), raised_out, atol=1e-9)
