@@ -77,6 +77,16 @@ def assert_late_only_where_the_delay_rose(changes, late_frames: int) -> None:
     assert late_frames == changes[-1][1], changes
 
 
+def test_late_frames_are_allowed_only_where_the_planner_raised_the_delay():
+    """The real-clock tests' check on a delay's history: CI's stall (2 late at delay 6, then
+    raised to 7) passes; a lowering followed by late frames, or late frames after the last
+    change, fails."""
+    assert_late_only_where_the_delay_rose([(5, 0), (8, 50), (7, 50), (6, 50), (7, 52), (6, 52), (5, 52)], 52)
+    with pytest.raises(AssertionError):
+        assert_late_only_where_the_delay_rose([(5, 0), (8, 50), (7, 52), (6, 52), (5, 52)], 52)
+    with pytest.raises(AssertionError):
+        assert_late_only_where_the_delay_rose([(5, 0), (8, 50), (5, 50)], 51)
+
 def test_presets_set_hop_and_delay_and_flags_override_them():
     cfg = build_config({}, {})
     assert (cfg.latency, cfg.hop, cfg.delay) == ("default", 4, 5)
