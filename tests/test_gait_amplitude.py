@@ -16,9 +16,8 @@ from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SH
                                              ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, HIPS_BOBS, RAISED_SWAY_GAIN,
                                              STILL_ARM_SHARE, WAVING_ARM_SHARE, across_points, amplitude_points,
                                              amplitudes, elbow_points, forward_points, measure_arm_forwards,
-                                             measure_arm_swings,
-                                             measure_elbow_bends, measure_hips_bobs, still_points, sway_points,
-                                             waving_points)
+                                             measure_arm_swings, measure_elbow_bends, measure_hips_bobs, still_points,
+                                             sway_points, waving_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
