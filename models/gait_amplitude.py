@@ -168,9 +168,9 @@ STILL_ARM_SHARE = dict.fromkeys(("active", "elderly", "exhausted", "feminine", "
 # youthful's action 85.0 / 82.2 -> 88.9 / 83.8 % (those waves 67.7 / 47.6 % kept), masculine's
 # 93.7 / 92.9 -> 94.1 / 94.9 % (its waves of one hand all kept), both styles within 0.6 of
 # before; the dynamics judges lower (panel 7's mean: youthful 89.2 -> 84.0 %, masculine 64.4 ->
-# 58.4). Towards the others, offline on panel 0, their waves read less as their style
-# (active's 90-99 -> 8-21 %, elderly's right waves 96.8 -> 88.5 %) and were kept as before:
-# not named (the model card, "Waves wave as the performer's").
+# 58.4). Towards the others (a scratch run through the stream, panel 0) their waves read
+# less as their style (active's 90-99 -> 8-21 %, elderly's right waves 96.8 -> 88.5 %) and
+# were kept as before: not named (the model card, "Waves wave as the performer's").
 WAVING_ARM_SHARE = {"masculine": 1.0, "youthful": 1.0}
 
 
