@@ -348,11 +348,29 @@ def elbow_bend(yaw: np.ndarray, positions: np.ndarray) -> float:
     take's mean): feminine 49-61 degrees, active 51-91, exhausted 99-113, youthful 28-37,
     normal 77-105; the multistyle model's held-out runs restyled towards the first four bent
     them 38, 104, 73 and 50 on average (2026-12-07)."""
+    return _mean_bend(positions, (("LeftUpperArm", "LeftLowerArm", "LeftHand"),
+                                  ("RightUpperArm", "RightLowerArm", "RightHand")))
+
+
+def knee_bend(yaw: np.ndarray, positions: np.ndarray) -> float:
+    """Degrees: how far the knees bend, the angle between thigh (hip joint to knee) and shin
+    (knee to ankle), 0 straight, the mean over frames and both legs (``elbow_bend``'s reading;
+    the table of ``gait_amplitude.KNEE_BENDS``; not one of ``GAIT_STATISTICS``). Real feminine
+    walks and runs bend them less than normal ones (the training clips: 31.3 and 49.1 degrees
+    against 34.9 and 57.9); the multistyle model towards feminine bent the held-out normal
+    walks' and runs' more (37.5 and 61.6, the input's 34.9 and 58.5), and the judges read
+    those runs feminine in a third of windows (2026-12-07)."""
+    return _mean_bend(positions, (("LeftUpperLeg", "LeftLowerLeg", "LeftFoot"),
+                                  ("RightUpperLeg", "RightLowerLeg", "RightFoot")))
+
+
+def _mean_bend(positions: np.ndarray, chains) -> float:
+    """Degrees: the mean over frames and ``chains`` (upper, lower, end joint names) of the
+    angle between the upper and the lower bone; NaN where a bone has no length."""
     angles = []
-    for upper, lower, hand in (("LeftUpperArm", "LeftLowerArm", "LeftHand"),
-                               ("RightUpperArm", "RightLowerArm", "RightHand")):
+    for upper, lower, end in chains:
         a = positions[:, HUMANOID_BONES.index(lower)] - positions[:, HUMANOID_BONES.index(upper)]
-        b = positions[:, HUMANOID_BONES.index(hand)] - positions[:, HUMANOID_BONES.index(lower)]
+        b = positions[:, HUMANOID_BONES.index(end)] - positions[:, HUMANOID_BONES.index(lower)]
         if np.any(np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1) < 1e-9):
             return float("nan")
         # atan2 of the cross and dot products: accurate near straight, where arccos of the

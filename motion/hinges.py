@@ -94,6 +94,7 @@ class _Table(NamedTuple):
 
 _TABLE = _Table.of(HINGES)
 _ELBOWS = _Table.of(HINGES[:2])
+_KNEES = _Table.of(HINGES[2:])
 
 # Where a restyle straightens a hinge more than its input, the flexion below which it is
 # eased towards straight (``eased_bend``): the smaller of EASE_SHARE of the input's own bend
@@ -147,11 +148,33 @@ def keep_hinges(inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
     return out
 
 
+def _flexion(table: _Table, rotations: np.ndarray) -> np.ndarray:
+    swing, _ = _swing_twist(np.asarray(rotations, np.float64)[..., table.joints, :], table.axis)
+    return table.bend(swing)
+
+
 def elbow_flexion(rotations: np.ndarray) -> np.ndarray:
     """Humanoid rotations (..., J, 4) -> each elbow's flexion (..., 2), radians, bent positive
     (left, right: ``HINGES``' order)."""
-    swing, _ = _swing_twist(np.asarray(rotations, np.float64)[..., _ELBOWS.joints, :], _ELBOWS.axis)
-    return _ELBOWS.bend(swing)
+    return _flexion(_ELBOWS, rotations)
+
+
+def knee_flexion(rotations: np.ndarray) -> np.ndarray:
+    """Humanoid rotations (..., J, 4) -> each knee's flexion (..., 2), radians, bent positive
+    (left, right)."""
+    return _flexion(_KNEES, rotations)
+
+
+def scale_knee_flexion(outputs: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The outputs (..., J, 4) with each knee's flexion times ``scale`` (..., 2) (the gait
+    amplitude's knees, ``footlock.GaitAmplitude``), the rest of each knee as it was: a hinge
+    stays a hinge, and a positive scale never takes it past straight."""
+    table = _KNEES
+    out = np.array(outputs, dtype=np.float64)
+    before = out[..., table.joints, :]
+    swing, twist = _swing_twist(before, table.axis)
+    table.put(out, rot.multiply(rot.exp_map(table.with_bend(swing, table.bend(swing) * scale)), twist), before)
+    return out
 
 
 def add_elbow_flexion(outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
