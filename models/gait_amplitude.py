@@ -13,9 +13,10 @@ style's over the source's, at the source's walking and running paces.
 
 The tables are measured on the training split only (the held-out files stay unseen), with
 ``measure_arm_swings``, ``measure_hips_bobs``, ``measure_elbow_bends`` (how far the elbows
-bend, which the styles that ask for it take in their runs) and ``measure_arm_forwards`` (how
+bend, which the styles that ask for it take in their runs), ``measure_arm_forwards`` (how
 far forward the hands are carried, which active takes in its walks, feminine and youthful
-in their runs); ``tests/test_gait_amplitude.py`` checks them against the data.
+in their runs) and ``measure_knee_bends`` (how far the knees bend, which feminine takes);
+``tests/test_gait_amplitude.py`` checks them against the data.
 """
 
 from __future__ import annotations
@@ -198,6 +199,39 @@ def waving_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float
     return _share_points(WAVING_ARM_SHARE, source, target)
 
 
+# How far the knees bend on average (degrees, ``metrics.knee_bend``: the angle between thigh
+# and shin, both legs) in each style's training clips: (walks, runs), the walking actions'
+# means averaged.
+KNEE_BENDS = {
+    "active": (44.81, 65.23),
+    "elderly": (42.20, 52.12),
+    "exhausted": (42.99, 57.23),
+    "feminine": (31.29, 49.13),
+    "masculine": (37.85, 55.97),
+    "normal": (34.90, 57.94),
+    "youthful": (32.20, 51.26),
+}
+# The share of the way from the restyle's own knee bend to the target style's (KNEE_BENDS)
+# that the stream takes, (at the walking pace, at the running pace); none standing and for a
+# style not named. Real feminine walks and runs bend the knees less than normal ones, and the
+# generator bent them more (held-out runs 61.6 degrees, real feminine 46-52; their heels
+# kicked up 50-60 cm where real feminine runs lift them 35): its runs read feminine in a third
+# of windows. All of the way (Intel Xeon VM, panel 0 / 7, worst judge): runs judged feminine
+# 33.8 / 38.2 -> 95.6 / 98.5 % (panels' means), feminine 87.0 / 85.8 -> 90.4 / 95.8 %; in runs
+# alone, 90.1 / 86.7 %. The legs straighter in their swing, the walks' swings dip more (their
+# worst action 13 -> 20 % of swings) and a run's ankles cross a little more (the model card,
+# "Feminine's knees"). Masculine's and elderly's runs (59.9 and 72.2 degrees against real 56
+# and 52, read as their style in 31-45 %) barely moved: elderly's feet in the air follow the
+# input's path (``--feet path``), which bends its knees back; not taken.
+KNEE_BEND_SHARE = {"feminine": (1.0, 1.0)}
+
+
+def knee_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float, float], ...]:
+    """``ContactSettings.knee_bend``, as ``elbow_points`` with ``KNEE_BENDS`` and
+    ``KNEE_BEND_SHARE``."""
+    return _pull_points(KNEE_BENDS, KNEE_BEND_SHARE, source, target)
+
+
 def elbow_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float, float], ...]:
     """``ContactSettings.elbow_bend`` for input of style ``source`` restyled towards the mix
     ``target``: (input speed in cm a frame, share, degrees) at the source's walking and
@@ -282,7 +316,7 @@ def sway_points(source: str, target: Mapping[str, float], kind: int) -> tuple[tu
 
 
 def amplitudes(source: str, target: Mapping[str, float]) -> dict:
-    """The nine settings, by ``ContactSettings`` field name."""
+    """The ten settings, by ``ContactSettings`` field name."""
     return {"arm_swing": amplitude_points(ARM_SWINGS, source, target, ARM_SWING_TRIM),
             "hips_bob": amplitude_points(HIPS_BOBS, source, target),
             "arm_across": across_points(source, target),
@@ -291,7 +325,8 @@ def amplitudes(source: str, target: Mapping[str, float]) -> dict:
             "elbow_bend": elbow_points(source, target),
             "arm_forward": forward_points(source, target),
             "still_arms": still_points(source, target),
-            "waving_arms": waving_points(source, target)}
+            "waving_arms": waving_points(source, target),
+            "knee_bend": knee_points(source, target)}
 
 
 def measure_arm_swings(files, cache_dir=None) -> dict[str, tuple[float, float]]:
@@ -329,3 +364,10 @@ def _measure(files, read, cache_dir) -> dict[str, tuple[float, float]]:
     skeleton = D.bandai_skeleton(files)
     return per_style_locomotion(files, lambda m: read(m, world_positions(m.rotations, m.root_positions, skeleton)),
                                 cache_dir)
+
+
+def measure_knee_bends(files, cache_dir=None) -> dict[str, tuple[float, float]]:
+    """``KNEE_BENDS`` from the dataset's training split: {style: (walks, runs)} in degrees."""
+    from .metrics import knee_bend
+
+    return _measure(files, lambda m, positions: knee_bend(None, positions), cache_dir)

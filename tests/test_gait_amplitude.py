@@ -13,11 +13,12 @@ import pytest
 
 from stylecast.models import data as D
 from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SHARE, ARM_FORWARDS, ARM_SWING_TRIM,
-                                             ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, HIPS_BOBS, RAISED_SWAY_GAIN,
-                                             STILL_ARM_SHARE, WAVING_ARM_SHARE, across_points, amplitude_points,
-                                             amplitudes, elbow_points, forward_points, measure_arm_forwards,
-                                             measure_arm_swings, measure_elbow_bends, measure_hips_bobs, still_points,
-                                             sway_points, waving_points)
+                                             ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, HIPS_BOBS, KNEE_BEND_SHARE,
+                                             KNEE_BENDS, RAISED_SWAY_GAIN, STILL_ARM_SHARE, WAVING_ARM_SHARE,
+                                             across_points, amplitude_points, amplitudes, elbow_points, forward_points,
+                                             knee_points, measure_arm_forwards, measure_arm_swings, measure_elbow_bends,
+                                             measure_hips_bobs, measure_knee_bends, still_points, sway_points,
+                                             waving_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
@@ -37,7 +38,8 @@ SKELETON = humanoid_skeleton_default()
 
 @needs_data
 @pytest.mark.parametrize("table, measure", [(ARM_SWINGS, measure_arm_swings), (HIPS_BOBS, measure_hips_bobs),
-                                            (ELBOW_BENDS, measure_elbow_bends), (ARM_FORWARDS, measure_arm_forwards)])
+                                            (ELBOW_BENDS, measure_elbow_bends), (ARM_FORWARDS, measure_arm_forwards),
+                                            (KNEE_BENDS, measure_knee_bends)])
 def test_the_amplitude_tables_are_what_the_training_clips_measure(table, measure):
     measured = measure(D.list_files(DATA))
     assert set(measured) == set(table)
@@ -385,6 +387,20 @@ def test_elbow_points_take_the_named_styles_share_of_their_own_bend_at_the_sourc
     assert amplitudes("normal", {style: 1.0})["elbow_bend"] == points
 
 
+def test_knee_points_take_the_named_styles_share_of_their_own_bend_at_the_source_paces():
+    style = next(s for s, (walks, runs) in KNEE_BEND_SHARE.items() if walks > 0 and runs > 0)
+    walks, runs = KNEE_BEND_SHARE[style]
+    points = knee_points("normal", {style: 1.0})
+    assert np.asarray(points) == pytest.approx(np.array([[PACES["normal"][0] / 60, walks, KNEE_BENDS[style][0]],
+                                                         [PACES["normal"][1] / 60, runs, KNEE_BENDS[style][1]]]))
+    keeps = next(s for s in KNEE_BENDS if s not in KNEE_BEND_SHARE)  # keeps the restyle's bend
+    assert knee_points("normal", {keeps: 1.0}) == ()
+    half = knee_points("normal", {style: 0.5, keeps: 0.5})
+    assert half[1][1:] == pytest.approx((runs / 2, KNEE_BENDS[style][1]))
+    assert knee_points("robot", {style: 1.0}) == ()  # a source of unknown paces: none
+    assert amplitudes("normal", {style: 1.0})["knee_bend"] == points
+
+
 def test_a_pair_model_takes_its_target_styles_run_bend_and_no_other_amplitude():
     """The shipped pair default (normal -> exhausted) keeps its generator's arm swing and hip
     bob, and its runs take exhausted's elbow bend; the other way (towards normal, a style
@@ -436,6 +452,43 @@ def test_a_running_stream_bends_its_elbows_as_the_style_and_a_standing_one_not_a
     assert np.degrees(elbow_flexion(between)[settled]).mean() == pytest.approx(87.0, abs=1.0)  # the line
     still_roots, still = bent_elbows(n, speed=0.0, mean=np.radians(104.0))
     assert arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), still_roots, still, still) is None
+
+
+def bent_knees(n: int, speed: float, mean: float, swing: float = 0.5):
+    """``swinging`` without the upper arms' swing, each knee (a hinge about X) bending
+    ``swing`` radians either side of ``mean`` at 1.5 Hz."""
+    roots, q = swinging(n, speed=speed, amplitude_deg=0.0)
+    bend = mean + swing * np.sin(2 * np.pi * 1.5 * np.arange(n) / 60.0)
+    for joint in ("LeftLowerLeg", "RightLowerLeg"):
+        q[:, HUMANOID_BONES.index(joint)] = rot.exp_map(np.outer(bend, [1.0, 0.0, 0.0]))  # ``HINGES``: bent +X
+    return roots, q
+
+
+def test_a_running_stream_bends_its_knees_as_the_style_and_a_standing_one_not_at_all():
+    """Knees bent 60 degrees on average while running, the style asking for 48 at the running
+    pace: the flexion is scaled (0.8), so its mean goes to 48 and its swing shrinks with it;
+    at half the share, half way; standing, left alone; a hinge stays a hinge; and the bend
+    ``metrics.knee_bend`` reads from the joints' positions is the hinges' flexion."""
+    from stylecast.models.metrics import knee_bend
+    from stylecast.motion.hinges import knee_flexion
+
+    n, settled = 600, slice(240, None)
+    run = ((2.0, 0.0, 0.0), (5.0, 1.0, 48.0))
+    roots, q = bent_knees(n, speed=5.0, mean=np.radians(60.0))
+    out = arms_of(GaitAmplitude(replace(FEET["input"], knee_bend=run)), roots, q, q)
+    flexion, own = np.degrees(knee_flexion(out)[settled]), np.degrees(knee_flexion(q)[settled])
+    assert flexion.mean(axis=0) == pytest.approx([48.0, 48.0], abs=1.0)
+    # the swing shrinks with it: by 0.8 but for what the low-pass lets into the level it
+    # scales by (a triple pole of 15 frames passes part of a 1.5 Hz swing, out of phase)
+    shrunk = np.ptp(flexion, axis=0) / np.ptp(own, axis=0)
+    assert np.all((0.78 < shrunk) & (shrunk < 0.9)), shrunk
+    assert knee_bend(None, world_positions(out[settled], roots[settled], SKELETON)) == pytest.approx(48.0, abs=1.0)
+    for joint in ("LeftLowerLeg", "RightLowerLeg"):
+        assert np.abs(rot.log_map(out[:, HUMANOID_BONES.index(joint)])[:, 1:]).max() < 1e-9  # a hinge
+    half = arms_of(GaitAmplitude(replace(FEET["input"], knee_bend=((2.0, 0.0, 0.0), (5.0, 0.5, 48.0)))), roots, q, q)
+    assert np.degrees(knee_flexion(half)[settled]).mean() == pytest.approx(54.0, abs=1.0)
+    still_roots, still = bent_knees(n, speed=0.0, mean=np.radians(60.0))
+    assert arms_of(GaitAmplitude(replace(FEET["input"], knee_bend=run)), still_roots, still, still) is None
 
 
 def test_forward_points_take_the_named_styles_share_of_their_own_place_at_the_source_paces():
@@ -682,6 +735,7 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
                  ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0)), (), ()))]
     settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), arm_forward=((2.0, 0.5, 20.0),)))
     settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), waving_arms=((0.0, 1.0),)))
+    settings[1] = replace(settings[1], knee_bend=((2.0, 1.0, 25.0), (5.0, 0.5, 40.0)))
     mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n),
              np.clip(np.arange(n) / 90.0, 0, 1), np.clip(np.arange(n) / 30.0, 0.0, 1.0),
              np.clip(np.arange(n) / 45.0, 0.0, 1.0)]
@@ -705,6 +759,7 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     assert live[0]._moving[7:9] == [True, True] and live[1]._moving[7:9] == [True, True]  # and the hands carried
     assert live[5]._moving[9] and np.abs(whole[5][0] - restyled[5]).max() > 0.01  # and the still arms held
     assert live[6]._moving[10] and np.abs(whole[6][0] - restyled[6]).max() > 0.01  # and the waving arms held
+    assert live[1]._moving[11:13] == [True, True] and not live[0]._moving[11]  # and the knees' bend
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

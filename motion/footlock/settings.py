@@ -163,6 +163,10 @@ class ContactSettings:
     # ...and (input speed, share) of a waving arm's own motion taken away (``still``): where
     # the performer's raised hand sways across, the same share of the way to the low-pass.
     waving_arms: tuple[tuple[float, float], ...] = ()
+    # ...and (input speed, share, degrees) of how far the knees bend on average: each knee's
+    # flexion scaled so its low-pass goes the share of the way from the output's own bend to
+    # the style's (its swing scaled with it), none standing.
+    knee_bend: tuple[tuple[float, float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -260,12 +264,12 @@ def stance_standing_of(restyler, weights=None) -> float:
 
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
 NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
-                 "elbow_bend": (), "arm_forward": (), "still_arms": (), "waving_arms": ()}
+                 "elbow_bend": (), "arm_forward": (), "still_arms": (), "waving_arms": (), "knee_bend": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
     """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``,
-    ``elbow_bend``, ``arm_forward``, ``still_arms`` and ``waving_arms``, by name, with ``restyler``
+    ``elbow_bend``, ``arm_forward``, ``still_arms``, ``waving_arms`` and ``knee_bend``, by name, with ``restyler``
     (towards the style mix ``weights``, where it takes one): () each for a restyler without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)

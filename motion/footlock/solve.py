@@ -78,7 +78,7 @@ class LockJob:
 def solve_lock_jobs(jobs: list[LockJob]) -> None:
     """Many locks' jobs (the daemon: every performer's frame of this tick) in one vectorised
     pass, each frame with its own performer's proportions: the pelvis height and stance
-    (each lock's state advanced in order), the arms' swing and the hips' bob
+    (each lock's state advanced in order), the arms' swing, the knees' bend and the hips' bob
     (``GaitAmplitude``), the lock of planted feet, then the floor (see the module
     docstring). Run per lock, numpy's per-call cost was 55x the work
     (``bench_daemon.py footlock``). Each job is solved once, in the order of its frames."""
@@ -127,9 +127,10 @@ class _Rows:
 
 
 def _scale_amplitudes(rows: _Rows) -> None:
-    """Each lock's ``GaitAmplitude`` on its rows: the arms' swing (``result``; the legs read
-    ``outputs``) and the hips' bob (``new_roots``, set by ``_advance``, before the legs are
-    solved from them); one vectorised pass where every lock has one frame (the daemon's tick)."""
+    """Each lock's ``GaitAmplitude`` on its rows: the arms' swing and the knees' bend
+    (``result``; the pelvis and the stance read ``outputs``) and the hips' bob (``new_roots``,
+    set by ``_advance``), before the legs are solved from them; one vectorised pass where
+    every lock has one frame (the daemon's tick)."""
     jobs = rows.jobs
     if len(jobs) > 1 and len(rows.roots) == len(jobs):
         shown = [1.0 if job.mix is None else float(job.mix[0]) for job in jobs]
