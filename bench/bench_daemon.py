@@ -338,10 +338,12 @@ def bench_footlock(model, motion, runs=5, performers=16):
     # and with the walks' hands carried forward (the arms' places, a low-pass and a turn of
     # each upper arm a frame) against the same; and with still arms held (the input arms'
     # places, three low-passes and six bones' offsets a frame, paid on the walk too) against
-    # the same; and with waving arms held too (three more low-passes a frame) against the same
+    # the same; and with waving arms held too (three more low-passes a frame) against the same;
+    # and with the knees at feminine's bend too (the knees' flexion, a low-pass and a scale a
+    # frame) against the same
     from stylecast.models.gait_amplitude import amplitudes
 
-    youthful, active = (amplitudes("normal", {style: 1.0}) for style in ("youthful", "active"))
+    youthful, active, feminine = (amplitudes("normal", {style: 1.0}) for style in ("youthful", "active", "feminine"))
     for feet, overrides, label in (("input", {}, "input"),
                                    ("path", {}, "path (elderly and exhausted)"),
                                    ("path", amplitudes("normal", {"elderly": 1.0}),
@@ -360,7 +362,10 @@ def bench_footlock(model, motion, runs=5, performers=16):
                                     "stance, active, the walks' hands forward too"),
                                    ("stance", active, "stance, active, still arms held too"),
                                    ("stance", {**active, "waving_arms": ((0.0, 1.0),)},
-                                    "stance, active, waving arms held too")):
+                                    "stance, active, waving arms held too"),
+                                   ("stance", {**active, "waving_arms": ((0.0, 1.0),),
+                                               "knee_bend": feminine["knee_bend"]},
+                                    "stance, active, the knees at feminine's bend too")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
             each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, overrides)
                                                        for _ in range(runs)]))
