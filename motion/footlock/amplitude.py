@@ -568,10 +568,12 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
     _swing_frames(amplitudes, [k for k, parts in enumerate(active) if parts.arms], inputs, outputs, extra)
     _across_frames(amplitudes, [k for k, parts in enumerate(active) if parts.crossing], inputs, outputs, extra,
                    offsets)
-    _bend_frames(amplitudes, [k for k, parts in enumerate(active) if parts.bend], outputs, extra)
+    _pull_frames(amplitudes, [k for k, parts in enumerate(active) if parts.bend], outputs, extra, "bend",
+                 elbow_flexion, BEND, _bent)
     _forward_frames(amplitudes, [k for k, parts in enumerate(active) if parts.forward], outputs, extra, offsets)
     _still_frames(amplitudes, [k for k, parts in enumerate(active) if parts.still], inputs, outputs, extra, offsets)
-    _knee_frames(amplitudes, [k for k, parts in enumerate(active) if parts.knees], outputs, extra)
+    _pull_frames(amplitudes, [k for k, parts in enumerate(active) if parts.knees], outputs, extra, "knees",
+                 knee_flexion, KNEES, _straightened)
 
 
 def _low_pass_streams(streams: list[GaitAmplitude], key: str, signal: np.ndarray) -> np.ndarray:
@@ -633,16 +635,19 @@ def _across_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
                                     ArmPlaces(*(part[moving] for part in their)))
 
 
-def _bend_frames(amplitudes, at, outputs, extra) -> None:
-    """``amplitude_frames``' elbows' bend for the streams ``at``, after their arms' swing and sways."""
+def _pull_frames(amplitudes, at, outputs, extra, key: str, flexion, gains: int, pulled) -> None:
+    """``amplitude_frames``' elbows' bend (after the arms' swing and sways) or knees' bend (after
+    the arms) for the streams ``at``: the low-pass ``key`` of the ``flexion`` of their outputs,
+    and where the part's share or pull (the gains at ``gains`` and the next) has moved, the
+    outputs ``pulled`` towards the style's bend."""
     if not at:
         return
     bending = [amplitudes[k] for k in at]
-    mean = _low_pass_streams(bending, "bend", elbow_flexion(outputs[at]))
-    rows = [i for i, g in enumerate(bending) if g._moving[BEND] or g._moving[BEND + 1]]
+    mean = _low_pass_streams(bending, key, flexion(outputs[at]))
+    rows = [i for i, g in enumerate(bending) if g._moving[gains] or g._moving[gains + 1]]
     if rows:
         at_rows = [at[i] for i in rows]
-        outputs[at_rows] = _bent(outputs[at_rows], mean[rows], extra[at_rows, BEND:FORWARD])
+        outputs[at_rows] = pulled(outputs[at_rows], mean[rows], extra[at_rows, gains:gains + 2])
 
 
 def _forward_frames(amplitudes, at, outputs, extra, offsets) -> None:
@@ -674,15 +679,3 @@ def _still_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
     if rows:
         at_rows = [at[i] for i in rows]
         outputs[at_rows] = held(frames[rows], outputs[at_rows], offset[rows], mean[rows], weight[rows])
-
-
-def _knee_frames(amplitudes, at, outputs, extra) -> None:
-    """``amplitude_frames``' knees' bend for the streams ``at``, after their arms."""
-    if not at:
-        return
-    bending = [amplitudes[k] for k in at]
-    mean = _low_pass_streams(bending, "knees", knee_flexion(outputs[at]))
-    rows = [i for i, g in enumerate(bending) if g._moving[KNEES] or g._moving[KNEES + 1]]
-    if rows:
-        at_rows = [at[i] for i in rows]
-        outputs[at_rows] = _straightened(outputs[at_rows], mean[rows], extra[at_rows, KNEES:])
