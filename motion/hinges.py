@@ -169,12 +169,7 @@ def scale_knee_flexion(outputs: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """The outputs (..., J, 4) with each knee's flexion times ``scale`` (..., 2) (the gait
     amplitude's knees, ``footlock.GaitAmplitude``), the rest of each knee as it was: a hinge
     stays a hinge, and a positive scale never takes it past straight."""
-    table = _KNEES
-    out = np.array(outputs, dtype=np.float64)
-    before = out[..., table.joints, :]
-    swing, twist = _swing_twist(before, table.axis)
-    table.put(out, rot.multiply(rot.exp_map(table.with_bend(swing, table.bend(swing) * scale)), twist), before)
-    return out
+    return _reflexed(_KNEES, outputs, lambda bend: bend * scale)
 
 
 def add_elbow_flexion(outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
@@ -183,11 +178,14 @@ def add_elbow_flexion(outputs: np.ndarray, added: np.ndarray) -> np.ndarray:
     a hinge stays a hinge, and the flexion stops at straight (or where the output already
     was past it). A hard stop, not ``eased_bend``: easing an already eased flexion again
     moves it even where nothing is added."""
-    table = _ELBOWS
+    return _reflexed(_ELBOWS, outputs, lambda bend: np.maximum(bend + added, np.minimum(bend, 0.0)))
+
+
+def _reflexed(table: _Table, outputs: np.ndarray, new_bend) -> np.ndarray:
+    """The outputs (..., J, 4) with each of ``table``'s hinges flexed to ``new_bend`` of its
+    flexion (..., H), its sideways bend and twist as they were."""
     out = np.array(outputs, dtype=np.float64)
     before = out[..., table.joints, :]
     swing, twist = _swing_twist(before, table.axis)
-    bend_out = table.bend(swing)
-    bend = np.maximum(bend_out + added, np.minimum(bend_out, 0.0))
-    table.put(out, rot.multiply(rot.exp_map(table.with_bend(swing, bend)), twist), before)
+    table.put(out, rot.multiply(rot.exp_map(table.with_bend(swing, new_bend(table.bend(swing)))), twist), before)
     return out

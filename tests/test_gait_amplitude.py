@@ -22,7 +22,7 @@ from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SH
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
-from stylecast.motion.footlock import FEET, FootLock, GaitAmplitude
+from stylecast.motion.footlock import FEET, ContactSettings, FootLock, GaitAmplitude
 from stylecast.motion.footlock.across import LOWER_ARM_INDEX, UPPER_ARM_INDEX, arm_places, hand_across, move_across
 from stylecast.motion.footlock.amplitude import (ACROSS_INPUT_SHARE, MAX_SWING_GAIN, RAISED_GATE_CM, SWING_INDEX,
                                                  WAVING_GATE_CM, amplitude_frames)
@@ -569,6 +569,20 @@ def wobble_deg(arms: np.ndarray, inputs: np.ndarray, posture_deg: float = 20.0) 
     return np.degrees(np.linalg.norm(rot.log_map(rot.multiply(arms[:, UPPER_ARM_INDEX], rot.inverse(aim))), axis=-1))
 
 
+def held_and_halved(field: str, roots, q, out, settled) -> tuple[np.ndarray, ContactSettings]:
+    """The arms ``GaitAmplitude`` gives the restyle ``out`` (wobbled 15 degrees about the
+    input ``q``) with the hold ``field`` (``still_arms``, ``waving_arms``) all on, checked to
+    keep under 8 % of the wobble, and at half its share half of it; -> (the held arms, the
+    settings with it all on)."""
+    setting = replace(FEET["input"], **{field: ((0.0, 1.0),)})
+    held = arms_of(GaitAmplitude(setting), roots, q, out)
+    assert wobble_deg(out, q)[settled].max() == pytest.approx(15.0, abs=0.1)
+    assert wobble_deg(held, q)[settled].max() < 0.08 * 15.0
+    half = arms_of(GaitAmplitude(replace(FEET["input"], **{field: ((0.0, 0.5),)})), roots, q, out)
+    assert wobble_deg(half, q)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
+    return held, setting
+
+
 def test_a_still_hanging_arm_moves_as_the_input_at_the_restyles_posture_and_a_swinging_one_is_left_alone():
     """The performer's arms held still, the restyle's at another posture and wobbling: held,
     each arm bone is the input's turned by the restyle's mean offset (the posture kept, the
@@ -577,15 +591,10 @@ def test_a_still_hanging_arm_moves_as_the_input_at_the_restyles_posture_and_a_sw
     n, settled = 600, slice(240, None)
     roots, q = swinging(n, speed=0.0, amplitude_deg=0.3)
     out = wobbled(q)
-    still = replace(FEET["input"], still_arms=((0.0, 1.0),))
-    held = arms_of(GaitAmplitude(still), roots, q, out)
-    assert wobble_deg(out, q)[settled].max() == pytest.approx(15.0, abs=0.1)
-    assert wobble_deg(held, q)[settled].max() < 0.08 * 15.0
+    held, still = held_and_halved("still_arms", roots, q, out, settled)
     # the elbow's own posture kept (a steady offset), so a hinge stays a hinge
     elbow = lambda arms: rot.log_map(rot.multiply(arms[:, LOWER_ARM_INDEX], rot.inverse(q[:, LOWER_ARM_INDEX])))
     np.testing.assert_allclose(elbow(held)[settled], elbow(out)[settled], atol=1e-9)
-    half = arms_of(GaitAmplitude(replace(FEET["input"], still_arms=((0.0, 0.5),))), roots, q, out)
-    assert wobble_deg(half, q)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
     # the first frame counts as moving: the hold comes in over the low-passes, not at once
     assert wobble_deg(held, q)[:3].max() == pytest.approx(wobble_deg(out, q)[:3].max(), abs=0.01)
     walk_roots, walk = swinging(n, speed=2.0)
@@ -607,12 +616,7 @@ def test_a_waving_arm_moves_as_the_input_at_the_restyles_posture_and_a_raised_st
     n, settled = 600, slice(240, None)
     roots, q = waving(n, sway_deg=20.0, hz=2.0)
     out = wobbled(q)
-    waves = replace(FEET["input"], waving_arms=((0.0, 1.0),))
-    held = arms_of(GaitAmplitude(waves), roots, q, out)
-    assert wobble_deg(out, q)[settled].max() == pytest.approx(15.0, abs=0.1)
-    assert wobble_deg(held, q)[settled].max() < 0.08 * 15.0
-    half = arms_of(GaitAmplitude(replace(FEET["input"], waving_arms=((0.0, 0.5),))), roots, q, out)
-    assert wobble_deg(half, q)[settled].max() == pytest.approx(0.5 * 15.0, rel=0.1)
+    _, waves = held_and_halved("waving_arms", roots, q, out, settled)
     raise_roots, raised = waving(n, sway_deg=0.0)
     raised_out = wobbled(raised)
     np.testing.assert_allclose(arms_of(GaitAmplitude(waves), raise_roots, raised, raised_out), raised_out, atol=1e-9)

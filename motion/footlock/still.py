@@ -15,8 +15,9 @@ out = exp(v) in, v = log(out in^-1) in the parent's frame, and the elbow's flexi
 input's plus an offset; where held, each offset becomes its own low-pass (the restyle's
 posture, its motion about it taken away), weighed by a gate: the input hand's speed
 against its shoulder joint (low-passed) under ``STILL_SPEED_CM``, the input hand not held
-over its elbow (``amplitude.RAISED_GATE_CM``: a raised hand is a raise's or a wave's), the gate low-passed so a hand that starts
-to move is let go over a few frames, times the style's share (``ContactSettings.still_arms``).
+over its elbow (``amplitude.RAISED_GATE_CM``: a raised hand is a raise's or a wave's), the
+gate low-passed so a hand that starts to move is let go over a few frames, times the style's
+share (``ContactSettings.still_arms``).
 
 A waving arm (``ContactSettings.waving_arms``, a style's choice) is held the same way where
 the input hand is raised and sways across (``WAVING_HOLD_CM``): the restyle's posture, the
