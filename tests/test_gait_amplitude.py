@@ -483,6 +483,8 @@ def test_a_running_stream_bends_its_knees_as_the_style_and_a_standing_one_not_at
     shrunk = np.ptp(flexion, axis=0) / np.ptp(own, axis=0)
     assert np.all((0.78 < shrunk) & (shrunk < 0.9)), shrunk
     assert knee_bend(None, world_positions(out[settled], roots[settled], SKELETON)) == pytest.approx(48.0, abs=1.0)
+    # ...and tells them from the input's, bent 12 degrees more
+    assert knee_bend(None, world_positions(q[settled], roots[settled], SKELETON)) == pytest.approx(60.0, abs=1.0)
     for joint in ("LeftLowerLeg", "RightLowerLeg"):
         assert np.abs(rot.log_map(out[:, HUMANOID_BONES.index(joint)])[:, 1:]).max() < 1e-9  # a hinge
     half = arms_of(GaitAmplitude(replace(FEET["input"], knee_bend=((2.0, 0.0, 0.0), (5.0, 0.5, 48.0)))), roots, q, q)
