@@ -365,7 +365,10 @@ def bench_footlock(model, motion, runs=5, performers=16):
                                     "stance, active, waving arms held too"),
                                    ("stance", {**active, "waving_arms": ((0.0, 1.0),),
                                                "knee_bend": feminine["knee_bend"]},
-                                    "stance, active, the knees at feminine's bend too")):
+                                    "stance, active, the knees at feminine's bend too"),
+                                   ("stance", {**active, "waving_arms": ((0.0, 1.0),),
+                                               "knee_bend": feminine["knee_bend"], "waving_elbows": ((0.0, 0.5),)},
+                                    "stance, active, waving elbows half given back too")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
             each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, overrides)
                                                        for _ in range(runs)]))

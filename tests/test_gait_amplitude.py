@@ -15,10 +15,11 @@ from stylecast.models import data as D
 from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SHARE, ARM_FORWARDS, ARM_SWING_TRIM,
                                              ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, HIPS_BOBS, KNEE_BEND_SHARE,
                                              KNEE_BENDS, RAISED_SWAY_GAIN, STILL_ARM_SHARE, WAVING_ARM_SHARE,
+                                             WAVING_ELBOW_SHARE,
                                              across_points, amplitude_points, amplitudes, elbow_points, forward_points,
                                              knee_points, measure_arm_forwards, measure_arm_swings, measure_elbow_bends,
                                              measure_hips_bobs, measure_knee_bends, still_points, sway_points,
-                                             waving_points)
+                                             waving_elbow_points, waving_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
 from stylecast.models.pace import PACES
 from stylecast.motion import rotations as rot
@@ -547,6 +548,12 @@ def test_still_points_take_the_named_styles_share_at_any_speed():
     # a style read word by word leaves the arms to the performer, as every other amplitude
     assert still_points("auto", {"feminine": 1.0}) == waving_points("auto", {"youthful": 1.0}) == ()
     assert amplitudes("normal", {"youthful": 1.0})["waving_arms"] == waving_points("normal", {"youthful": 1.0})
+    # the waving elbows: youthful's share, half in a half mix, none for a style not named or read word by word
+    assert waving_elbow_points("normal", {"youthful": 1.0}) == ((0.0, WAVING_ELBOW_SHARE["youthful"]),)
+    assert waving_elbow_points("normal", {"youthful": 0.5, "masculine": 0.5})[0][1] == pytest.approx(
+        WAVING_ELBOW_SHARE["youthful"] / 2)
+    assert waving_elbow_points("normal", {"masculine": 1.0}) == waving_elbow_points("auto", {"youthful": 1.0}) == ()
+    assert amplitudes("normal", {"youthful": 1.0})["waving_elbows"] == waving_elbow_points("normal", {"youthful": 1.0})
 
 
 def wobbled(q: np.ndarray, wobble_deg: float = 15.0, hz: float = 1.5, posture_deg: float = 20.0,
@@ -626,6 +633,41 @@ def test_a_waving_arm_moves_as_the_input_at_the_restyles_posture_and_a_raised_st
     hanging_out = wobbled(hanging)
     np.testing.assert_allclose(arms_of(GaitAmplitude(waves), hang_roots, hanging, hanging_out), hanging_out,
                                atol=1e-9)
+
+
+def test_a_waving_elbow_bends_the_share_of_the_way_to_the_performers_and_a_still_one_keeps_the_restyles():
+    """The performer waves both hands (the elbows bending 0-85 degrees), the restyle bends
+    them 25 degrees further and holds them there: with the waving hold on and all of the
+    elbow given back, each held elbow bends as the performer's (the wave's own flexion kept);
+    half given back, half of the restyle's extra bend left; the upper arms held at the
+    restyle's posture either way; a still hanging arm's elbow keeps the restyle's bend
+    whatever the share."""
+    from stylecast.motion.hinges import add_elbow_flexion, elbow_flexion
+
+    n, settled = 600, slice(240, None)
+    roots, q = waving(n, sway_deg=30.0, hz=2.0)
+    q = add_elbow_flexion(q, np.full((n, 2), np.radians(40.0)))  # the forearm's wave bends the elbow 0-85 degrees
+    out = add_elbow_flexion(wobbled(q), np.full((n, 2), np.radians(25.0)))
+
+    def held_with(elbow_share, roots=roots, q=q, out=out, field="waving_arms"):
+        setting = replace(FEET["input"], **{field: ((0.0, 1.0),)}, waving_elbows=((0.0, elbow_share),))
+        return arms_of(GaitAmplitude(setting), roots, q, out)
+
+    kept, given, half = held_with(0.0), held_with(1.0), held_with(0.5)
+    performers = np.maximum(elbow_flexion(q), 0.0)  # a hinge: never past straight, where the wave's swing takes it
+    assert np.degrees(np.abs(elbow_flexion(kept) - performers)[settled]).min() > 10.0  # the restyle's bend, held
+    np.testing.assert_allclose(elbow_flexion(given)[settled], performers[settled], atol=np.radians(0.5))
+    bent = settled.start + np.flatnonzero(elbow_flexion(q)[settled].min(axis=1) > 0.0)  # the wave bends both
+    np.testing.assert_allclose((elbow_flexion(half) - performers)[bent], 0.5 * (elbow_flexion(kept) - performers)[bent],
+                               atol=np.radians(0.5))
+    for arms in (given, half):  # the upper arms stay at the restyle's posture, their wobble held away
+        assert wobble_deg(arms, q)[settled].max() < 0.08 * 15.0
+    # a still hanging arm is held at the restyle's elbow: the share is a waving arm's alone
+    hang_roots, hanging = swinging(n, speed=0.0, amplitude_deg=0.3)
+    hanging_out = add_elbow_flexion(wobbled(hanging), np.full((n, 2), np.radians(25.0)))
+    still, restyles = (held_with(share, hang_roots, hanging, hanging_out, field="still_arms") for share in (1.0, 0.0))
+    np.testing.assert_allclose(elbow_flexion(still)[settled], elbow_flexion(restyles)[settled], atol=1e-9)
+    assert wobble_deg(still, hanging)[settled].max() < 0.08 * 15.0  # held, so the share had its chance
 
 
 def test_an_elbow_swings_by_the_gain_and_stays_a_hinge():
@@ -740,7 +782,8 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
                  (((2.0, 0.5),), ((2.0, 2.0),), ((2.0, 0.3), (5.0, 0.8)), (), (), (), ()), ((), (), (), (), (), (), ()),
                  ((), (), ((2.0, 0.0),), ((0.0, 1.6), (2.0, 1.0)), ((0.0, 0.5), (2.0, 1.0)), (), ()))]
     settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), arm_forward=((2.0, 0.5, 20.0),)))
-    settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), waving_arms=((0.0, 1.0),)))
+    settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), waving_arms=((0.0, 1.0),),
+                            waving_elbows=((0.0, 0.5),)))
     settings[1] = replace(settings[1], knee_bend=((2.0, 1.0, 25.0), (5.0, 0.5, 40.0)))
     mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n),
              np.clip(np.arange(n) / 90.0, 0, 1), np.clip(np.arange(n) / 30.0, 0.0, 1.0),
@@ -764,8 +807,9 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     assert live[0]._moving[5:7] == [True, True] and live[1]._moving[5:7] == [True, True]  # and the elbows' bend
     assert live[0]._moving[7:9] == [True, True] and live[1]._moving[7:9] == [True, True]  # and the hands carried
     assert live[5]._moving[9] and np.abs(whole[5][0] - restyled[5]).max() > 0.01  # and the still arms held
-    assert live[6]._moving[10] and np.abs(whole[6][0] - restyled[6]).max() > 0.01  # and the waving arms held
-    assert live[1]._moving[11:13] == [True, True] and not live[0]._moving[11]  # and the knees' bend
+    assert live[6]._moving[10:12] == [True, True] and np.abs(whole[6][0] - restyled[6]).max() > 0.01  # and the
+    # waving arms held, their elbows half given back
+    assert live[1]._moving[12:14] == [True, True] and not live[0]._moving[12]  # and the knees' bend
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

@@ -46,7 +46,8 @@ the pace, the stream takes the style's amplitudes:
   still, the output arm's offset from the input's is held at its low-pass (the restyle's
   posture, its motion about it taken away), at any speed over ground; and (``waving_arms``)
   where the performer's raised hand waves, the same hold (the restyle's posture, the
-  performer's wave);
+  performer's wave), the elbow given back the share ``waving_elbows`` of the way to the
+  performer's own bend;
 - the knees' bend (``knee_bend``, a style's choice): each knee's flexion in the OUTPUT is
   scaled so that its own low-pass would go a share of the way to the style's mean bend (the
   stride's swing of the knee scaled with it, a hinge still, ``hinges.scale_knee_flexion``),
@@ -82,7 +83,7 @@ from ..smoothing import TriplePole, lfilter_one_step, smoothstep, triple_pole
 from .across import ArmPlaces, arm_places, forward_turns, move_across, sway_turns, turn_upper_arms
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
-from .still import hand_steps_squared, held, offset_signal, still_gate, waving_gate
+from .still import hand_steps_squared, held, held_aim, offset_signal, still_gate, waving_gate
 
 # The bones whose swing is scaled as free rotations: the shoulder joints (ball joints). The
 # elbows are hinges (``motion.hinges``): only their flexion's swing is scaled. Scaling the
@@ -138,7 +139,8 @@ BEND = 5
 FORWARD = BEND + 2
 STILL = FORWARD + 2  # the still arms' share (one gain)
 WAVING = STILL + 1  # the waving arms' share (one gain)
-KNEES = WAVING + 1  # the knees' bend part's share, then its pull
+WAVING_ELBOW = WAVING + 1  # the share of a waving arm's elbow bend that is the performer's (one gain)
+KNEES = WAVING_ELBOW + 1  # the knees' bend part's share, then its pull
 
 # The least knee flexion (radians, of its low-pass) the knees' part divides by, and the range
 # of the scale it gives: a low-pass near straight (a stiff-legged stride) would otherwise ask
@@ -241,6 +243,8 @@ class GaitAmplitude:
         self._still = _Gain(settings.still_arms, settings.pace_tau, rest=0.0)
         # ...and of a waving arm's (``waving_arms``)
         self._waving = _Gain(settings.waving_arms, settings.pace_tau, rest=0.0)
+        # ...and the share of a waving arm's elbow bend that is the performer's (``waving_elbows``)
+        self._waving_elbow = _Gain(settings.waving_elbows, settings.pace_tau, rest=0.0)
         # the knees' bend: the pair of gains of the elbows' (``knee_bend``)
         self._knee_share, self._knee_pull = (_Gain(points, settings.pace_tau, rest=0.0)
                                              for points in _pull_gains(settings.knee_bend))
@@ -269,12 +273,13 @@ class GaitAmplitude:
         self._last_step = 0.0  # the input's last horizontal step that was not a teleport
         self._first_step = True  # the stream's first step is yet to come
         # arms, hips, across, wave, raise, the bend's share and pull, the forward part's, the
-        # still and the waving arms', the knees' share and pull: any
+        # still and the waving arms', the waving elbows', the knees' share and pull: any
         # gain off its rest so far (else the work is skipped)
         self._moving = [False] * len(self._gains)
 
     def set_points(self, arm_swing=(), hips_bob=(), arm_across=(), wave_sway=(), raise_sway=(),
-                   elbow_bend=(), arm_forward=(), still_arms=(), waving_arms=(), knee_bend=()) -> None:
+                   elbow_bend=(), arm_forward=(), still_arms=(), waving_arms=(), waving_elbows=(),
+                   knee_bend=()) -> None:
         """New amplitudes (a new model, direction or style; () = the input's own), as
         (input speed cm/frame, gain) points (``elbow_bend``, ``arm_forward``: (speed, share,
         degrees)); the gains move to them over the low-pass."""
@@ -285,6 +290,7 @@ class GaitAmplitude:
         self._raise.set_points(raise_sway)
         self._still.set_points(still_arms)
         self._waving.set_points(waving_arms)
+        self._waving_elbow.set_points(waving_elbows)
         for gain, points in zip((self._bend_share, self._bend_pull, self._forward_share, self._forward_pull,
                                  self._knee_share, self._knee_pull),
                                 (*_pull_gains(elbow_bend), *_pull_gains(arm_forward), *_pull_gains(knee_bend))):
@@ -311,7 +317,8 @@ class GaitAmplitude:
     @property
     def _gains(self) -> tuple[_Gain, ...]:
         return (self._arms, self._hips, self._across, self._wave, self._raise, self._bend_share, self._bend_pull,
-                self._forward_share, self._forward_pull, self._still, self._waving, self._knee_share, self._knee_pull)
+                self._forward_share, self._forward_pull, self._still, self._waving, self._waving_elbow,
+                self._knee_share, self._knee_pull)
 
     def apply(self, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, heights: np.ndarray,
               mix: np.ndarray | None = None, offsets: np.ndarray | None = None
@@ -532,9 +539,10 @@ def _still_signals(low_pass, inputs: np.ndarray, outputs: np.ndarray, hands: Arm
     """The still and the waving arms' low-passes on rows in order (a block of one stream, or one
     frame of each of many: ``low_pass(key, signal)`` runs either): ``hands``, the input's arm
     places, ``before`` (n, 2, 3), each row's input hands a frame earlier, and ``extra`` (n,
-    extras), the rows' gains -> the arms' offsets from the input (n, 14), their low-pass, and
-    how far each arm is held (n, 2): its share times its gate, low-passed, where its hand hangs
-    still or waves (the one excludes the other: a waving hand is raised, a still one not)."""
+    extras), the rows' gains -> the arms' offsets from the input (n, 14), the offsets the hold
+    aims at (their low-pass, a waving elbow's given back its share: ``held_aim``), and how far
+    each arm is held (n, 2): its share times its gate, low-passed, where its hand hangs still
+    or waves (the one excludes the other: a waving hand is raised, a still one not)."""
     steps = low_pass("steps", hand_steps_squared(hands.hand, before))
     raised = hands.raised()
     gate = low_pass("still", still_gate(steps, raised, RAISED_GATE_CM))
@@ -542,8 +550,9 @@ def _still_signals(low_pass, inputs: np.ndarray, outputs: np.ndarray, hands: Arm
     waving = low_pass("hold_waving", (across - low_pass("hold_across", across)) ** 2)
     waves = low_pass("waves", waving_gate(raised, waving, RAISED_GATE_CM))
     offset = offset_signal(inputs, outputs)
-    weight = np.minimum(extra[:, STILL, None] * gate + extra[:, WAVING, None] * waves, 1.0)
-    return offset, low_pass("offset", offset), weight
+    still, waved = extra[:, STILL, None] * gate, extra[:, WAVING, None] * waves
+    aim = held_aim(low_pass("offset", offset), still, waved, extra[:, WAVING_ELBOW, None])
+    return offset, aim, np.minimum(still + waved, 1.0)
 
 
 def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray,

@@ -163,6 +163,10 @@ class ContactSettings:
     # ...and (input speed, share) of a waving arm's own motion taken away (``still``): where
     # the performer's raised hand sways across, the same share of the way to the low-pass.
     waving_arms: tuple[tuple[float, float], ...] = ()
+    # ...and (input speed, share) of a waving arm's elbow bend given back to the performer
+    # (``still``): where the waving hold holds an arm, its elbow's flexion goes the share of
+    # the way from the restyle's posture to the performer's own, whose forearm carries the wave.
+    waving_elbows: tuple[tuple[float, float], ...] = ()
     # ...and (input speed, share, degrees) of how far the knees bend on average: each knee's
     # flexion scaled so its low-pass goes the share of the way from the output's own bend to
     # the style's (its swing scaled with it), none standing.
@@ -264,13 +268,15 @@ def stance_standing_of(restyler, weights=None) -> float:
 
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
 NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
-                 "elbow_bend": (), "arm_forward": (), "still_arms": (), "waving_arms": (), "knee_bend": ()}
+                 "elbow_bend": (), "arm_forward": (), "still_arms": (), "waving_arms": (),
+                 "waving_elbows": (), "knee_bend": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
     """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``,
-    ``elbow_bend``, ``arm_forward``, ``still_arms``, ``waving_arms`` and ``knee_bend``, by name, with ``restyler``
-    (towards the style mix ``weights``, where it takes one): () each for a restyler without them."""
+    ``elbow_bend``, ``arm_forward``, ``still_arms``, ``waving_arms``, ``waving_elbows`` and ``knee_bend``, by
+    name, with ``restyler`` (towards the style mix ``weights``, where it takes one): () each for a restyler
+    without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)
     return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}

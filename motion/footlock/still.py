@@ -24,6 +24,13 @@ the input hand is raised and sways across (``WAVING_HOLD_CM``): the restyle's po
 performer's wave. Towards youthful the restyle sways the hands of a wave of both less than
 the performer (4.9 cm, the input's 7.0, real youthful ones 8.8-11.5), and the judges took
 those waves for raises (the model card, "Waves wave as the performer's").
+
+A waving arm's elbow can be given back to the performer (``ContactSettings.waving_elbows``,
+a style's share): held at the restyle's posture, a youthful wave's elbow is nearly straight
+(13-15 degrees of flexion; the input's 67-74), and the performer's wave, a forearm turning
+about the upper arm, then barely moves the hand: its held-out waves of both hands still read
+as raises. The hold aims that share of the way from the restyle's elbow to the performer's
+(``held_aim``; the model card, "A waving elbow bends as the performer's").
 """
 
 from __future__ import annotations
@@ -89,6 +96,17 @@ def waving_gate(raised: np.ndarray, waving: np.ndarray, raised_gate: tuple[float
     its sway across about its low-pass (cm^2) -> (n, 2) how far each hand waves: 1 raised and
     swaying past ``WAVING_HOLD_CM``, 0 hanging or held up still (a raise's)."""
     return smoothstep(raised, *raised_gate) * smoothstep(np.sqrt(np.maximum(waving, 0.0)), *WAVING_HOLD_CM)
+
+
+def held_aim(mean: np.ndarray, still: np.ndarray, waved: np.ndarray, elbow_share: np.ndarray) -> np.ndarray:
+    """The offsets (n, 14) a hold moves each arm towards: the low-pass ``mean`` of its offsets
+    from the input (``offset_signal``), each elbow's flexion offset cut by ``elbow_share`` (n, 1)
+    of the part of its hold that is a wave's (``still`` and ``waved``, (n, 2): the still and
+    the waving holds' weights): a waving elbow goes that share of the way to the performer's own
+    bend, a still one stays at the restyle's."""
+    waving_part = waved / np.maximum(still + waved, 1e-9)  # 0 where neither holds: held() then moves nothing
+    elbows = mean[:, FREE_CHANNELS:] * (1.0 - elbow_share * waving_part)
+    return np.concatenate([mean[:, :FREE_CHANNELS], elbows], axis=1)
 
 
 def held(inputs: np.ndarray, outputs: np.ndarray, offset: np.ndarray, mean: np.ndarray,
