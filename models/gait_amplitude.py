@@ -175,18 +175,19 @@ STILL_ARM_SHARE = dict.fromkeys(("active", "elderly", "exhausted", "feminine", "
 WAVING_ARM_SHARE = {"masculine": 1.0, "youthful": 1.0}
 
 # The share of a waving arm's elbow bend given back to the performer, by target style
-# (``ContactSettings.waving_elbows``, ``motion.footlock.still.held_aim``): held at the restyle's
-# posture, youthful's waving elbows are nearly straight (13-15 degrees of flexion, the input's
-# 67-74; real youthful waves 12-18, a straight arm swung 12-15 cm across), and the performer's
-# wave, a forearm turning about the upper arm, barely moves the hand: its waves of both hands
-# read as raises (67.7 / 47.6 % kept on panels 0 / 7's means). Half given back (panels 0 / 7,
-# worst judge): youthful's action 88.9 / 83.8 -> 92.5 / 91.3 % (those waves 100 / 99.4 % kept,
-# the means), its style 97.2 / 98.0 -> 94.6 / 96.0 % (its left waves 94.9 -> 83.8 % youthful on
-# panel 0's mean), its FMD 17.7 / 11.3 -> 22.2 / 15.5x the floor. All of it (1): the raised upper arm
-# with a bent elbow drops a left wave's hand below its elbow and 17 % of its windows read as
-# other actions; a hand swung across as far as real youthful's instead (1.5x the performer's
-# sway, a scratch diagnostic) kept fewer waves (94 %) at 1.24-1.36x the input's jerk on them
-# (the model card, "A waving elbow bends as the performer's").
+# (``ContactSettings.waving_elbows``, ``motion.footlock.still.held_aim``): held at the
+# restyle's posture, youthful's waving elbows are nearly straight (13-15 degrees of flexion,
+# the input's 67-74; real youthful waves 12-18, a straight arm swung 12-15 cm across), and the
+# performer's wave, a forearm turning about the upper arm, barely moves the hand: its waves of
+# both hands read as raises (67.7 / 47.6 % kept on panels 0 / 7's means). Half given back
+# (panels 0 / 7, worst judge): youthful's action 88.9 / 83.8 -> 92.5 / 91.3 % (those waves 100
+# / 99.4 % kept, the means), its style 97.2 / 98.0 -> 94.6 / 96.0 % (its left waves 94.9 ->
+# 83.8 % youthful on panel 0's mean), its FMD 17.7 / 11.3 -> 22.2 / 15.5x the floor. All of it
+# (1): the raised upper arm with a bent elbow drops a left wave's hand below its elbow and 17
+# % of its windows read as other actions; a hand swung across as far as real youthful's
+# instead (1.5x the performer's sway, a scratch diagnostic) kept fewer waves (94 %) at
+# 1.24-1.36x the input's jerk on them (the model card, "A waving elbow bends as the
+# performer's").
 WAVING_ELBOW_SHARE = {"youthful": 0.5}
 
 
