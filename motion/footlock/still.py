@@ -104,6 +104,8 @@ def held_aim(mean: np.ndarray, still: np.ndarray, waved: np.ndarray, elbow_share
     of the part of its hold that is a wave's (``still`` and ``waved``, (n, 2): the still and
     the waving holds' weights): a waving elbow goes that share of the way to the performer's own
     bend, a still one stays at the restyle's."""
+    if not np.any(elbow_share):  # every target but the few that name a share: the low-pass as it is
+        return mean
     waving_part = waved / np.maximum(still + waved, 1e-9)  # 0 where neither holds: held() then moves nothing
     elbows = mean[:, FREE_CHANNELS:] * (1.0 - elbow_share * waving_part)
     return np.concatenate([mean[:, :FREE_CHANNELS], elbows], axis=1)
