@@ -13,11 +13,12 @@ import pytest
 
 from stylecast.models import data as D
 from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SHARE, ARM_FORWARDS, ARM_SWING_TRIM,
-                                             ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, HIPS_BOBS, KNEE_BEND_SHARE,
-                                             KNEE_BENDS, RAISED_SWAY_GAIN, STILL_ARM_SHARE, WAVING_ARM_SHARE,
-                                             WAVING_ELBOW_SHARE,
-                                             across_points, amplitude_points, amplitudes, elbow_points, forward_points,
-                                             knee_points, measure_arm_forwards, measure_arm_swings, measure_elbow_bends,
+                                             ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, ELBOW_FORWARD_SHARE,
+                                             ELBOW_FORWARDS, HIPS_BOBS, KNEE_BEND_SHARE, KNEE_BENDS,
+                                             RAISED_SWAY_GAIN, STILL_ARM_SHARE, WAVING_ARM_SHARE, WAVING_ELBOW_SHARE,
+                                             across_points, amplitude_points, amplitudes, elbow_forward_points,
+                                             elbow_points, forward_points, knee_points, measure_arm_forwards,
+                                             measure_arm_swings, measure_elbow_bends, measure_elbow_forwards,
                                              measure_hips_bobs, measure_knee_bends, still_points, sway_points,
                                              waving_elbow_points, waving_points)
 from stylecast.models.metrics import arm_swing, hips_bob, hips_yaw, world_positions
@@ -40,7 +41,8 @@ SKELETON = humanoid_skeleton_default()
 @needs_data
 @pytest.mark.parametrize("table, measure", [(ARM_SWINGS, measure_arm_swings), (HIPS_BOBS, measure_hips_bobs),
                                             (ELBOW_BENDS, measure_elbow_bends), (ARM_FORWARDS, measure_arm_forwards),
-                                            (KNEE_BENDS, measure_knee_bends)])
+                                            (KNEE_BENDS, measure_knee_bends),
+                                            (ELBOW_FORWARDS, measure_elbow_forwards)])
 def test_the_amplitude_tables_are_what_the_training_clips_measure(table, measure):
     measured = measure(D.list_files(DATA))
     assert set(measured) == set(table)
@@ -163,16 +165,16 @@ def test_a_walking_stream_swings_its_arms_by_the_gain_and_a_standing_one_not_at_
     assert arms_of(GaitAmplitude(FEET["input"]), roots, q, q) is None
 
 
-def hanging(n: int, speed: float, swing_deg: float = 20.0, seed: int = 0):
+def hanging(n: int, speed: float, swing_deg: float = 20.0, seed: int = 0, hz: float = 1.0, out_deg: float = 10.0):
     """A synthetic walk: roots moving ``speed`` cm a frame along +Z, every bone turned a
-    little from the rest pose, the upper arms hanging (the rest pose holds them out to the
-    side) and swinging forward and back at 1 Hz."""
+    little from the rest pose, the upper arms hanging ``out_deg`` out to their sides (the
+    rest pose holds them straight out) and swinging forward and back at ``hz``."""
     rng = np.random.default_rng(seed)
     base = rot.exp_map(rng.normal(0, 0.05, (J, 3)))
-    angle = np.radians(swing_deg) * np.sin(2 * np.pi * np.arange(n) / 60.0)
+    angle = np.radians(swing_deg) * np.sin(2 * np.pi * hz * np.arange(n) / 60.0)
     q = np.repeat(base[None], n, axis=0)
     for side, j in zip((-1.0, 1.0), UPPER_ARM_INDEX):
-        hang = rot.exp_map(np.array([0.0, 0.0, side * np.radians(80.0)]))
+        hang = rot.exp_map(np.array([0.0, 0.0, side * np.radians(90.0 - out_deg)]))
         q[:, j] = rot.multiply(rot.exp_map(np.outer(side * angle, [1.0, 0.0, 0.0])), rot.multiply(hang, base[j]))
     return np.stack([np.zeros(n), np.full(n, 100.0), speed * np.arange(n)], axis=1), q
 
@@ -506,6 +508,71 @@ def test_forward_points_take_the_named_styles_share_of_their_own_place_at_the_so
     assert amplitudes("normal", {"active": 1.0})["arm_forward"] == forward_points("normal", {"active": 1.0})
 
 
+def test_elbow_forward_points_take_the_named_styles_share_of_their_own_angle_at_the_source_paces():
+    walk, run = (speed / 60 for speed in PACES["normal"])
+    share = ELBOW_FORWARD_SHARE["active"]
+    points = elbow_forward_points("normal", {"active": 1.0})
+    # runs take none of active's angle, so the run's point asks for none
+    np.testing.assert_allclose(points, [[walk, share[0], ELBOW_FORWARDS["active"][0]], [run, share[1], 0.0]])
+    assert elbow_forward_points("normal", {"active": 0.5, "masculine": 0.5})[0][1:] == pytest.approx(
+        (share[0] / 2, ELBOW_FORWARDS["active"][0]))
+    assert elbow_forward_points("normal", {"masculine": 1.0}) == ()  # a style not named keeps the restyle's
+    assert amplitudes("normal", {"active": 1.0})["elbow_forward"] == points
+
+
+def test_the_elbows_forward_angle_reads_where_the_upper_arm_points_and_its_turn_moves_it_exactly():
+    from scipy.spatial.transform import Rotation
+
+    from stylecast.motion.footlock.across import elbow_directions, elbow_forward_angle, elbow_forward_turns
+
+    _, q = hanging(30, 0.0)
+    directions = elbow_directions(q)
+    for k, (j, out) in enumerate(zip(UPPER_ARM_INDEX, (1.0, -1.0))):
+        elbow = Rotation.from_quat(q[:, j]).apply([out, 0.0, 0.0])  # the bone at rest points out to its side
+        np.testing.assert_allclose(directions[:, k], elbow, atol=1e-12)
+    angle = elbow_forward_angle(directions)
+    np.testing.assert_allclose(angle, np.arctan2(directions[..., 2], -directions[..., 1]), atol=1e-12)
+    aim = angle + np.linspace(-0.3, 0.3, 60).reshape(30, 2)
+    for share in (1.0, 0.5):
+        turned = q.copy()
+        turned[:, UPPER_ARM_INDEX] = rot.multiply(elbow_forward_turns(directions, aim, np.full((30, 2), share)),
+                                                  q[:, UPPER_ARM_INDEX])
+        np.testing.assert_allclose(elbow_forward_angle(elbow_directions(turned)), angle + share * (aim - angle),
+                                   atol=1e-9)
+    # an arm raised over level is left alone, and one between fades smoothly
+    _, up = hanging(30, 0.0, out_deg=120.0)
+    assert np.all(elbow_forward_turns(elbow_directions(up), aim, np.ones((30, 2)))[..., 3] == 1.0)
+
+
+def test_a_walking_stream_carries_its_elbows_forward_as_the_style_and_a_standing_one_not_at_all():
+    """Upper arms hanging and swinging forward and back while walking, the style asking for
+    elbows 15 degrees forward at the walking pace: their mean moves there, their swing about
+    it stays, the forearms and hands keep their own rotations; at half the share, half way;
+    standing, left alone. The swing at 2 Hz in a 60 fps stream: a 1 Hz stride at the data's
+    30, the rate the low-pass is chosen for."""
+    from stylecast.motion.footlock.across import elbow_directions, elbow_forward_angle
+
+    n, settled = 600, slice(240, None)
+    walk = ((2.0, 1.0, 15.0), (5.0, 0.0, 0.0))
+    roots, q = hanging(n, speed=2.0, hz=2.0, out_deg=25.0)
+
+    def forward(rotations):
+        return np.degrees(elbow_forward_angle(elbow_directions(rotations)))[settled]
+
+    own = forward(q)
+    out = arms_of(GaitAmplitude(replace(FEET["input"], elbow_forward=walk)), roots, q, q)
+    assert np.abs(own.mean(axis=0) - 15.0).min() > 5.0  # an angle worth moving
+    assert forward(out).mean(axis=0) == pytest.approx([15.0, 15.0], abs=1.0)
+    assert np.ptp(forward(out), axis=0) == pytest.approx(np.ptp(own, axis=0), rel=0.05)  # the swing kept
+    others = np.setdiff1d(np.arange(J), UPPER_ARM_INDEX)
+    np.testing.assert_array_equal(out[:, others], q[:, others])
+    half = arms_of(GaitAmplitude(replace(FEET["input"], elbow_forward=((2.0, 0.5, 15.0), (5.0, 0.0, 0.0)))),
+                   roots, q, q)
+    assert forward(half).mean(axis=0) == pytest.approx((own.mean(axis=0) + 15.0) / 2, abs=1.0)
+    still_roots, still = hanging(n, speed=0.0, hz=2.0)
+    assert arms_of(GaitAmplitude(replace(FEET["input"], elbow_forward=walk)), still_roots, still, still) is None
+
+
 def test_a_walking_stream_carries_its_hands_forward_as_the_style_and_a_standing_one_not_at_all():
     """Hands swinging about 5 degrees forward of straight down while walking, the style asking
     for 25 at the walking pace: their mean moves there, their swing about it stays, how far
@@ -785,6 +852,7 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     settings.append(replace(FEET["input"], still_arms=((0.0, 1.0),), waving_arms=((0.0, 1.0),),
                             waving_elbows=((0.0, 0.5),)))
     settings[1] = replace(settings[1], knee_bend=((2.0, 1.0, 25.0), (5.0, 0.5, 40.0)))
+    settings[0] = replace(settings[0], elbow_forward=((2.0, 1.0, 15.0), (5.0, 0.5, 5.0)))
     mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n),
              np.clip(np.arange(n) / 90.0, 0, 1), np.clip(np.arange(n) / 30.0, 0.0, 1.0),
              np.clip(np.arange(n) / 45.0, 0.0, 1.0)]
@@ -810,6 +878,7 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     assert live[6]._moving[10:12] == [True, True] and np.abs(whole[6][0] - restyled[6]).max() > 0.01  # and the
     # waving arms held, their elbows half given back
     assert live[1]._moving[12:14] == [True, True] and not live[0]._moving[12]  # and the knees' bend
+    assert live[0]._moving[14:16] == [True, True] and not live[1]._moving[14]  # and the elbows carried
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

@@ -1,7 +1,9 @@
 """The hands' swing across the body (``GaitAmplitude``'s third part): where each hand sits
 across the body against its shoulder joint (``hand_across``), and the upper arm turned so
-the hand moves across by a given amount (``move_across``); and how far forward the hands are
-carried (``ArmPlaces.forward``, ``forward_turns``: its last part).
+the hand moves across by a given amount (``move_across``); how far forward the hands are
+carried (``ArmPlaces.forward``, ``forward_turns``); and how far forward each upper arm
+points (``elbow_directions``, ``elbow_forward_angle``, ``elbow_forward_turns``: the elbows
+carried forward).
 
 Why position space: the multistyle model towards youthful swung its held-out walks' hands
 7.2 cm across the body (``models.metrics.arm_swing_across``), where real youthful walks
@@ -25,7 +27,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import rotations as rot
-from ..humanoid import FORWARD, HUMANOID_BONES, UP
+from ..humanoid import FORWARD, HUMANOID_BONES, LEFT, UP
+from ..smoothing import smoothstep
 from .legs import _shortest_arc, _unit
 
 # From the hips to each shoulder bone (the upper arm's parent), then the arm.
@@ -35,6 +38,12 @@ SHOULDER_INDEX = np.array([HUMANOID_BONES.index(f"{side}Shoulder") for side in _
 UPPER_ARM_INDEX = np.array([HUMANOID_BONES.index(f"{side}UpperArm") for side in _SIDES])
 LOWER_ARM_INDEX = np.array([HUMANOID_BONES.index(f"{side}LowerArm") for side in _SIDES])
 HAND_INDEX = np.array([HUMANOID_BONES.index(f"{side}Hand") for side in _SIDES])
+# Each upper arm's bone at rest (the humanoid's T-pose) in its own frame: out to its side.
+_ARM_AT_REST = np.array([1.0, -1.0])[:, None] * LEFT
+# The cosines of an upper arm's mean angle from straight down over which the elbows' forward
+# part fades out (``elbow_forward_turns``): all of it within 53 degrees of straight down (a
+# walk's arms hang within 40), none from 73.
+HANGING_COS = (0.3, 0.6)
 
 
 def _left_of_hips(rotations: np.ndarray) -> np.ndarray:
@@ -157,3 +166,28 @@ def sway_turns(places: ArmPlaces, shift: np.ndarray) -> np.ndarray:
     # (square x left) is square's length times the unit axis: the angle shift * |square| /
     # reach^2 moves the hand shift * |square|^2 / reach^2 across
     return rot.exp_map((shift / reach_squared)[..., None] * rot.cross(square, left))
+
+
+def elbow_directions(rotations: np.ndarray) -> np.ndarray:
+    """(n, J, 4) local rotations -> (n, 2, 3) unit vectors: where each upper arm (left, right)
+    points in its shoulder bone's frame. Local rotations only: the torso's lean and the
+    shoulders' shrug are not the arm's place."""
+    return rot.apply(np.asarray(rotations, np.float64)[:, UPPER_ARM_INDEX], _ARM_AT_REST)
+
+
+def elbow_forward_angle(directions: np.ndarray) -> np.ndarray:
+    """(n, 2, 3) ``elbow_directions`` -> (n, 2) radians: how far forward of straight down
+    each elbow sits from its shoulder joint, in the plane of the shoulder's forward and up."""
+    return np.arctan2(directions @ FORWARD, -(directions @ UP))
+
+
+def elbow_forward_turns(mean: np.ndarray, forward: np.ndarray, share: np.ndarray) -> np.ndarray:
+    """(n, 2, 4) turns of each upper arm in its shoulder bone's frame (left-multiplied onto its
+    local rotation) about the shoulder's level axis, the share ``share`` (n, 2) of the turn
+    that carries an elbow pointing along ``mean`` (n, 2, 3 unit vectors) to ``forward`` (n, 2)
+    radians forward of straight down, exactly at share 1. The share fades out (smoothly) as
+    the mean rises towards level (HANGING_COS): a raised arm's angle from straight down is
+    not its place, and jumps where the arm passes over the shoulder."""
+    hanging = smoothstep(-(mean @ UP), *HANGING_COS)
+    angle = share * hanging * (forward - elbow_forward_angle(mean))
+    return rot.exp_map(-angle[..., None] * LEFT)

@@ -42,6 +42,13 @@ the pace, the stream takes the style's amplitudes:
   back (5.7 degrees forward, real active walks 19-31), and the judges took those walks for
   turns; it holds feminine's and youthful's runs' further forward than real ones (11 and -9,
   real -8 to -2 and -21 to -13), and the judges took those runs for other styles';
+- the elbows carried forward (``elbow_forward``, a style's choice): where each upper arm
+  points in its shoulder's frame (``across.elbow_directions``) keeps its swing about its own
+  low-pass in the OUTPUT, and the low-pass's angle forward of straight down is moved a share
+  of the way to the style's mean, the upper arm turned about the shoulder's level axis
+  (``across.elbow_forward_turns``), none standing nor for an arm raised towards level. The
+  generator points active's walking upper arms back (held-out walking takes -7 and -16
+  degrees, left and right; real active ones 7 and 3 forward), and the walks read less active;
 - still arms (``still_arms``, a style's choice, ``still``): where the performer's hand hangs
   still, the output arm's offset from the input's is held at its low-pass (the restyle's
   posture, its motion about it taken away), at any speed over ground; and (``waving_arms``)
@@ -80,7 +87,8 @@ from .. import rotations as rot
 from ..hinges import add_elbow_flexion, elbow_flexion, knee_flexion, scale_knee_flexion
 from ..humanoid import HUMANOID_BONES
 from ..smoothing import TriplePole, lfilter_one_step, smoothstep, triple_pole
-from .across import ArmPlaces, arm_places, forward_turns, move_across, sway_turns, turn_upper_arms
+from .across import (UPPER_ARM_INDEX, ArmPlaces, arm_places, elbow_directions, elbow_forward_turns,
+                     forward_turns, move_across, sway_turns, turn_upper_arms)
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
 from .still import hand_steps_squared, held, held_aim, offset_signal, still_gate, waving_gate
@@ -141,6 +149,7 @@ STILL = FORWARD + 2  # the still arms' share (one gain)
 WAVING = STILL + 1  # the waving arms' share (one gain)
 WAVING_ELBOW = WAVING + 1  # the share of a waving arm's elbow bend that is the performer's (one gain)
 KNEES = WAVING_ELBOW + 1  # the knees' bend part's share, then its pull
+ELBOWS = KNEES + 2  # the elbows carried forward: the part's share, then its pull
 
 # The least knee flexion (radians, of its low-pass) the knees' part divides by, and the range
 # of the scale it gives: a low-pass near straight (a stiff-legged stride) would otherwise ask
@@ -166,10 +175,11 @@ def _settled_filter(tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _pull_gains(points) -> tuple[tuple, tuple]:
-    """``ContactSettings.elbow_bend``'s or ``arm_forward``'s (input speed, share, degrees) ->
-    the points of the part's share and of its pull (the share times the angle, in radians):
-    two gains that rest at 0 standing and are low-passed apart, both linear in the share, so
-    their ratio eases from one style's angle to another's."""
+    """``ContactSettings.elbow_bend``'s, ``arm_forward``'s, ``knee_bend``'s or
+    ``elbow_forward``'s (input speed, share, degrees) -> the points of the part's share and of
+    its pull (the share times the angle, in radians): two gains that rest at 0 standing and
+    are low-passed apart, both linear in the share, so their ratio eases from one style's
+    angle to another's."""
     return (tuple((speed, share) for speed, share, _ in points),
             tuple((speed, share * math.radians(degrees)) for speed, share, degrees in points))
 
@@ -186,6 +196,7 @@ class Parts(NamedTuple):
     forward: bool
     still: bool
     knees: bool
+    elbows: bool  # the elbows carried forward
 
     @property
     def crossing(self) -> bool:
@@ -248,6 +259,9 @@ class GaitAmplitude:
         # the knees' bend: the pair of gains of the elbows' (``knee_bend``)
         self._knee_share, self._knee_pull = (_Gain(points, settings.pace_tau, rest=0.0)
                                              for points in _pull_gains(settings.knee_bend))
+        # the elbows carried forward: the pair of gains of the hands' (``elbow_forward``)
+        self._elbow_share, self._elbow_pull = (_Gain(points, settings.pace_tau, rest=0.0)
+                                               for points in _pull_gains(settings.elbow_forward))
         # The low-passes' states, each (3, channels) once started: "arms" of the input arms
         # (``_arm_signal``, CHANNELS), "across" of the hands' places (``_across_signal``, 4),
         # "waving" of the input hands' across swing squared (2), "sway" of each hand's sway
@@ -255,12 +269,12 @@ class GaitAmplitude:
         # the output hands' angles forward (2), "steps" of the input hands' squared steps (2),
         # "still" of their gates (2), "offset" of the arms' offsets from the input (14), and
         # "hold_across" of the input hands' places across (2), "hold_waving" of their swing
-        # about it squared (2) and "waves" of the waving arms' gates (2) (``still``), and "knees"
-        # of the output knees' flexion (2)
+        # about it squared (2) and "waves" of the waving arms' gates (2) (``still``), "knees"
+        # of the output knees' flexion (2), and "elbows" of where the output upper arms point (6)
         self._states: dict[str, np.ndarray | None] = {"arms": None, "across": None, "waving": None, "sway": None,
                                                       "bend": None, "forward": None, "steps": None, "still": None,
                                                       "offset": None, "hold_across": None, "hold_waving": None,
-                                                      "waves": None, "knees": None}
+                                                      "waves": None, "knees": None, "elbows": None}
         # each low-pass's filter and settled state (``_settled_filter``), by key
         taus = dict.fromkeys(self._states, settings.amplitude_tau) | {"forward": FORWARD_TAU}
         self._filters = {key: _settled_filter(tau) for key, tau in taus.items()}
@@ -273,16 +287,16 @@ class GaitAmplitude:
         self._last_step = 0.0  # the input's last horizontal step that was not a teleport
         self._first_step = True  # the stream's first step is yet to come
         # arms, hips, across, wave, raise, the bend's share and pull, the forward part's, the
-        # still and the waving arms', the waving elbows', the knees' share and pull: any
-        # gain off its rest so far (else the work is skipped)
+        # still and the waving arms', the waving elbows', the knees' share and pull, the
+        # elbows' forward part's: any gain off its rest so far (else the work is skipped)
         self._moving = [False] * len(self._gains)
 
     def set_points(self, arm_swing=(), hips_bob=(), arm_across=(), wave_sway=(), raise_sway=(),
                    elbow_bend=(), arm_forward=(), still_arms=(), waving_arms=(), waving_elbows=(),
-                   knee_bend=()) -> None:
+                   knee_bend=(), elbow_forward=()) -> None:
         """New amplitudes (a new model, direction or style; () = the input's own), as
-        (input speed cm/frame, gain) points (``elbow_bend``, ``arm_forward``: (speed, share,
-        degrees)); the gains move to them over the low-pass."""
+        (input speed cm/frame, gain) points (``elbow_bend``, ``arm_forward``, ``knee_bend``,
+        ``elbow_forward``: (speed, share, degrees)); the gains move to them over the low-pass."""
         self._arms.set_points(arm_swing)
         self._hips.set_points(hips_bob)
         self._across.set_points(arm_across)
@@ -292,8 +306,9 @@ class GaitAmplitude:
         self._waving.set_points(waving_arms)
         self._waving_elbow.set_points(waving_elbows)
         for gain, points in zip((self._bend_share, self._bend_pull, self._forward_share, self._forward_pull,
-                                 self._knee_share, self._knee_pull),
-                                (*_pull_gains(elbow_bend), *_pull_gains(arm_forward), *_pull_gains(knee_bend))):
+                                 self._knee_share, self._knee_pull, self._elbow_share, self._elbow_pull),
+                                (*_pull_gains(elbow_bend), *_pull_gains(arm_forward), *_pull_gains(knee_bend),
+                                 *_pull_gains(elbow_forward))):
             gain.set_points(points)
 
     def gains(self, speed: float) -> tuple[float, float]:
@@ -305,20 +320,20 @@ class GaitAmplitude:
     @property
     def active(self) -> Parts:
         """Whether the arms', the hips', the across, the wave's, the raise's, the elbows' bend's,
-        the forward and the still arms' parts have work (``_gains``' order, the bend's two
-        gains as one, the forward part's too, the still and the waving arms' too): a gain set,
+        the forward, the still arms', the knees' and the elbows' forward parts have work
+        (``_gains``' order, each pull part's two gains as one, the still and the waving arms' too): a gain set,
         or one still easing back to its rest. Their
         low-passes run only then (a session that never had a gain costs nothing but its
         speed), and start settled on the frame they start at."""
         on = [gain.on or moving for gain, moving in zip(self._gains, self._moving)]
         return Parts(*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1], on[STILL] or on[WAVING],
-                     on[KNEES] or on[KNEES + 1])
+                     on[KNEES] or on[KNEES + 1], on[ELBOWS] or on[ELBOWS + 1])
 
     @property
     def _gains(self) -> tuple[_Gain, ...]:
         return (self._arms, self._hips, self._across, self._wave, self._raise, self._bend_share, self._bend_pull,
                 self._forward_share, self._forward_pull, self._still, self._waving, self._waving_elbow,
-                self._knee_share, self._knee_pull)
+                self._knee_share, self._knee_pull, self._elbow_share, self._elbow_pull)
 
     def apply(self, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, heights: np.ndarray,
               mix: np.ndarray | None = None, offsets: np.ndarray | None = None
@@ -362,6 +377,11 @@ class GaitAmplitude:
             mean = self._low_pass("forward", places.forward())
             if self._moving[FORWARD] or self._moving[FORWARD + 1]:
                 swung = _carried(current, mean, extra[:, FORWARD:STILL], places)
+        if parts.elbows:
+            current = outputs if swung is None else swung
+            mean = self._low_pass("elbows", _elbow_signal(current))
+            if self._moving[ELBOWS] or self._moving[ELBOWS + 1]:
+                swung = _elbows_carried(current, mean, extra[:, ELBOWS:])
         if parts.still:
             inputs, current = np.asarray(inputs, np.float64), outputs if swung is None else swung
             hands = arm_places(inputs, offsets)
@@ -375,7 +395,7 @@ class GaitAmplitude:
             current = outputs if swung is None else swung
             mean = self._low_pass("knees", knee_flexion(current))
             if self._moving[KNEES] or self._moving[KNEES + 1]:
-                swung = _straightened(current, mean, extra[:, KNEES:])
+                swung = _straightened(current, mean, extra[:, KNEES:ELBOWS])
         return swung, bobbed
 
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
@@ -494,6 +514,26 @@ def _carried(outputs: np.ndarray, mean: np.ndarray, extra: np.ndarray, places: A
     return turn_upper_arms(outputs, places.parent, forward_turns(places, extra[:, 1:2] - extra[:, 0:1] * mean))
 
 
+def _elbow_signal(outputs: np.ndarray) -> np.ndarray:
+    """(n, 6): where each output upper arm points (``across.elbow_directions``), what the
+    elbows' forward part low-passes: a direction's low-pass is continuous wherever the arm
+    goes, its angle's is not."""
+    return elbow_directions(outputs).reshape(len(outputs), 6)
+
+
+def _elbows_carried(outputs: np.ndarray, mean: np.ndarray, extra: np.ndarray) -> np.ndarray:
+    """The outputs (n, J, 4) with each upper arm turned the share ``extra[:, 0]`` of the way
+    from its mean forward angle (of ``mean`` (n, 6), the low-pass of ``_elbow_signal``) to the
+    angle asked for (``extra[:, 1]``, the share times it), its swing about the mean kept."""
+    share = extra[:, 0:1]
+    asked = np.divide(extra[:, 1:2], share, out=np.zeros_like(share), where=share > 0.0)
+    mean = mean.reshape(len(mean), 2, 3)
+    turns = elbow_forward_turns(mean / np.linalg.norm(mean, axis=-1, keepdims=True), asked, share)
+    out = np.array(outputs, np.float64)
+    out[:, UPPER_ARM_INDEX] = rot.multiply(turns, out[:, UPPER_ARM_INDEX])
+    return out
+
+
 def _across_signal(inputs: np.ndarray, outputs: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, ArmPlaces]:
     """(n, 4) cm: each hand's place across the body against its shoulder joint
     (``across.arm_places``), the input's (left, right) then the output's; and the output's
@@ -580,6 +620,8 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
     _pull_frames(amplitudes, [k for k, parts in enumerate(active) if parts.bend], outputs, extra, "bend",
                  elbow_flexion, BEND, _bent)
     _forward_frames(amplitudes, [k for k, parts in enumerate(active) if parts.forward], outputs, extra, offsets)
+    _pull_frames(amplitudes, [k for k, parts in enumerate(active) if parts.elbows], outputs, extra, "elbows",
+                 _elbow_signal, ELBOWS, _elbows_carried)
     _still_frames(amplitudes, [k for k, parts in enumerate(active) if parts.still], inputs, outputs, extra, offsets)
     _pull_frames(amplitudes, [k for k, parts in enumerate(active) if parts.knees], outputs, extra, "knees",
                  knee_flexion, KNEES, _straightened)
@@ -645,10 +687,11 @@ def _across_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
 
 
 def _pull_frames(amplitudes, at, outputs, extra, key: str, flexion, gains: int, pulled) -> None:
-    """``amplitude_frames``' elbows' bend (after the arms' swing and sways) or knees' bend (after
-    the arms) for the streams ``at``: the low-pass ``key`` of the ``flexion`` of their outputs,
-    and where the part's share or pull (the gains at ``gains`` and the next) has moved, the
-    outputs ``pulled`` towards the style's bend."""
+    """``amplitude_frames``' elbows' bend (after the arms' swing and sways), elbows carried forward (after
+    the hands carried) or knees' bend (after the arms) for the streams ``at``: the low-pass
+    ``key`` of the ``flexion`` (or direction) of their outputs, and where the part's share or
+    pull (the gains at ``gains`` and the next) has moved, the outputs ``pulled`` towards the
+    style's."""
     if not at:
         return
     bending = [amplitudes[k] for k in at]

@@ -171,6 +171,11 @@ class ContactSettings:
     # flexion scaled so its low-pass goes the share of the way from the output's own bend to
     # the style's (its swing scaled with it), none standing.
     knee_bend: tuple[tuple[float, float, float], ...] = ()
+    # ...and (input speed, share, degrees) of how far forward of straight down the upper arms
+    # point (``across.elbow_forward_angle``, in the shoulders' frames), the same way: the share
+    # of the way from the output's own low-passed angle to the style's, the upper arms turned
+    # about the level axis across the body, none standing.
+    elbow_forward: tuple[tuple[float, float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -269,14 +274,14 @@ def stance_standing_of(restyler, weights=None) -> float:
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
 NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
                  "elbow_bend": (), "arm_forward": (), "still_arms": (), "waving_arms": (),
-                 "waving_elbows": (), "knee_bend": ()}
+                 "waving_elbows": (), "knee_bend": (), "elbow_forward": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
     """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``,
-    ``elbow_bend``, ``arm_forward``, ``still_arms``, ``waving_arms``, ``waving_elbows`` and ``knee_bend``, by
-    name, with ``restyler`` (towards the style mix ``weights``, where it takes one): () each for a restyler
-    without them."""
+    ``elbow_bend``, ``arm_forward``, ``still_arms``, ``waving_arms``, ``waving_elbows``, ``knee_bend`` and
+    ``elbow_forward``, by name, with ``restyler`` (towards the style mix ``weights``, where it takes one): () each
+    for a restyler without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)
     return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}
