@@ -265,15 +265,16 @@ ELBOW_FORWARDS = {
 # (ELBOW_FORWARDS) that the stream takes, (walks, runs); none standing and for a style not
 # named. The generator points active's walks' upper arms back (held-out walking takes: -7.1
 # and -16.3 degrees, left and right; real active ones 6.5 and 2.7), and panel 7's worst judge
-# read active in 89.0 % of windows. Three quarters of the
-# way, chosen on the judges (Intel Xeon VM, panels 0 / 7, worst judge): active 90.4 / 89.0
-# -> 91.8 / 94.3 %, action 85.8 / 91.7 -> 85.4 / 90.9 % (walks kept as walks 58.8 / 68.8 ->
-# 66.2 / 73.8 % on the means, left-turning walks 93.5 / 90.3 -> 90.7 / 86.6), jerk 1.094 ->
-# 1.099: all of the way read active in 92.1 / 93.8 % at jerk 1.100, over the bar (the
-# quarter-second low-pass lets 3 % of a stride's swing through, carried against itself: the
-# hands' jerk 1.258 -> 1.285); a 25-frame low-pass, jerk 1.096, read active in 87.5 % on panel
-# 0; moving the elbows out to active's too (26 degrees against the restyle's 36) 87.5 / 90.9
-# (the model card, "Active's elbows forward").
+# read active in 89.0 % of windows. Three quarters of the way, chosen on the judges (Intel
+# Xeon VM, panels 0 / 7, worst judge): active 90.4 / 89.0 -> 91.8 / 94.3 %, action 85.8 /
+# 91.7 -> 85.4 / 90.9 % (walks kept as walks 58.8 / 68.8 -> 66.2 / 73.8 % on the means,
+# left-turning walks 93.5 / 90.3 -> 90.7 / 86.6), jerk 1.094 -> 1.099. All of the way read
+# active in 92.1 / 93.8 % at jerk 1.100, over the bar (the quarter-second low-pass lets 3 % of
+# a stride's swing through, carried against itself: the hands' jerk 1.258 -> 1.285); a
+# 25-frame low-pass, jerk 1.096, read active in 87.5 % on panel 0; moving the elbows out to
+# active's too (26 degrees from straight down against the restyle's 36) 87.5 / 90.9 %;
+# youthful's walks, also taken for turns, lost action with it (92.5 / 91.3 -> 90.9 / 90.9 %).
+# The model card, "Active's elbows forward".
 ELBOW_FORWARD_SHARE = {"active": (0.75, 0.0)}
 
 

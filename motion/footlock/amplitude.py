@@ -321,8 +321,8 @@ class GaitAmplitude:
     def active(self) -> Parts:
         """Whether the arms', the hips', the across, the wave's, the raise's, the elbows' bend's,
         the forward, the still arms', the knees' and the elbows' forward parts have work
-        (``_gains``' order, each pull part's two gains as one, the still and the waving arms' too): a gain set,
-        or one still easing back to its rest. Their
+        (``_gains``' order, each pull part's two gains as one, the still and the waving arms'
+        too): a gain set, or one still easing back to its rest. Their
         low-passes run only then (a session that never had a gain costs nothing but its
         speed), and start settled on the frame they start at."""
         on = [gain.on or moving for gain, moving in zip(self._gains, self._moving)]
@@ -687,11 +687,11 @@ def _across_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
 
 
 def _pull_frames(amplitudes, at, outputs, extra, key: str, flexion, gains: int, pulled) -> None:
-    """``amplitude_frames``' elbows' bend (after the arms' swing and sways), elbows carried forward (after
-    the hands carried) or knees' bend (after the arms) for the streams ``at``: the low-pass
-    ``key`` of the ``flexion`` (or direction) of their outputs, and where the part's share or
-    pull (the gains at ``gains`` and the next) has moved, the outputs ``pulled`` towards the
-    style's."""
+    """``amplitude_frames``' elbows' bend (after the arms' swing and sways), elbows carried
+    forward (after the hands carried) or knees' bend (after the arms) for the streams ``at``:
+    the low-pass ``key`` of the ``flexion`` (or direction) of their outputs, and where the
+    part's share or pull (the gains at ``gains`` and the next) has moved, the outputs
+    ``pulled`` towards the style's."""
     if not at:
         return
     bending = [amplitudes[k] for k in at]
