@@ -535,17 +535,17 @@ def test_the_elbows_forward_angle_reads_where_the_upper_arm_points_and_its_turn_
     aim = angle + np.linspace(-0.3, 0.3, 60).reshape(30, 2)
     for share in (1.0, 0.5):
         turned = q.copy()
-        turned[:, UPPER_ARM_INDEX] = rot.multiply(elbow_forward_turns(directions, aim, np.full((30, 2), share)),
+        turned[:, UPPER_ARM_INDEX] = rot.multiply(elbow_forward_turns(directions, share * (aim - angle)),
                                                   q[:, UPPER_ARM_INDEX])
         np.testing.assert_allclose(elbow_forward_angle(elbow_directions(turned)), angle + share * (aim - angle),
                                    atol=1e-9)
     # an arm raised over level is left alone; one 62 degrees from straight down, in the fade,
     # is turned part of the way
     _, up = hanging(30, 0.0, out_deg=120.0)
-    assert np.all(elbow_forward_turns(elbow_directions(up), aim, np.ones((30, 2)))[..., 3] == 1.0)
+    assert np.all(elbow_forward_turns(elbow_directions(up), aim - angle)[..., 3] == 1.0)
     _, fading = hanging(30, 0.0, out_deg=62.0)
     directions = elbow_directions(fading)
-    turned = rot.log_map(elbow_forward_turns(directions, elbow_forward_angle(directions) + 0.2, np.ones((30, 2))))
+    turned = rot.log_map(elbow_forward_turns(directions, np.full((30, 2), 0.2)))
     assert np.all((np.linalg.norm(turned, axis=-1) > 0.01) & (np.linalg.norm(turned, axis=-1) < 0.19))
 
 

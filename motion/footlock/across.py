@@ -181,13 +181,12 @@ def elbow_forward_angle(directions: np.ndarray) -> np.ndarray:
     return np.arctan2(directions @ FORWARD, -(directions @ UP))
 
 
-def elbow_forward_turns(mean: np.ndarray, forward: np.ndarray, share: np.ndarray) -> np.ndarray:
+def elbow_forward_turns(mean: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """(n, 2, 4) turns of each upper arm in its shoulder bone's frame (left-multiplied onto its
-    local rotation) about the shoulder's level axis, the share ``share`` (n, 2) of the turn
-    that carries an elbow pointing along ``mean`` (n, 2, 3 unit vectors) to ``forward`` (n, 2)
-    radians forward of straight down, exactly at share 1. The share fades out (smoothly) as
-    the mean rises towards level (HANGING_COS): a raised arm's angle from straight down is
-    not its place, and jumps where the arm passes over the shoulder."""
+    local rotation) about the shoulder's level axis that carry an elbow pointing along
+    ``mean`` (n, 2, 3 unit vectors) ``angle`` (n, 2) radians further forward of straight down,
+    exactly (``forward_turns``' way for the elbow). The turn fades out (smoothly) as the mean
+    rises towards level (HANGING_COS): a raised arm's angle from straight down is not its
+    place, and jumps where the arm passes over the shoulder."""
     hanging = smoothstep(-(mean @ UP), *HANGING_COS)
-    angle = share * hanging * (forward - elbow_forward_angle(mean))
-    return rot.exp_map(-angle[..., None] * LEFT)
+    return rot.exp_map(-(hanging * angle)[..., None] * LEFT)

@@ -87,8 +87,8 @@ from .. import rotations as rot
 from ..hinges import add_elbow_flexion, elbow_flexion, knee_flexion, scale_knee_flexion
 from ..humanoid import HUMANOID_BONES
 from ..smoothing import TriplePole, lfilter_one_step, smoothstep, triple_pole
-from .across import (UPPER_ARM_INDEX, ArmPlaces, arm_places, elbow_directions, elbow_forward_turns,
-                     forward_turns, move_across, sway_turns, turn_upper_arms)
+from .across import (UPPER_ARM_INDEX, ArmPlaces, arm_places, elbow_directions, elbow_forward_angle,
+                     elbow_forward_turns, forward_turns, move_across, sway_turns, turn_upper_arms)
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
 from .still import hand_steps_squared, held, held_aim, offset_signal, still_gate, waving_gate
@@ -525,10 +525,9 @@ def _elbows_carried(outputs: np.ndarray, mean: np.ndarray, extra: np.ndarray) ->
     """The outputs (n, J, 4) with each upper arm turned the share ``extra[:, 0]`` of the way
     from its mean forward angle (of ``mean`` (n, 6), the low-pass of ``_elbow_signal``) to the
     angle asked for (``extra[:, 1]``, the share times it), its swing about the mean kept."""
-    share = extra[:, 0:1]
-    asked = np.divide(extra[:, 1:2], share, out=np.zeros_like(share), where=share > 0.0)
     mean = mean.reshape(len(mean), 2, 3)
-    turns = elbow_forward_turns(mean / np.linalg.norm(mean, axis=-1, keepdims=True), asked, share)
+    mean = mean / np.linalg.norm(mean, axis=-1, keepdims=True)
+    turns = elbow_forward_turns(mean, extra[:, 1:2] - extra[:, 0:1] * elbow_forward_angle(mean))
     out = np.array(outputs, np.float64)
     out[:, UPPER_ARM_INDEX] = rot.multiply(turns, out[:, UPPER_ARM_INDEX])
     return out
