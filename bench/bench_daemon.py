@@ -342,11 +342,14 @@ def bench_footlock(model, motion, runs=5, performers=16):
     # and with the knees at feminine's bend too (the knees' flexion, a low-pass and a scale a
     # frame) against the same; and with half of a waving elbow given back too; and with active's
     # walks' elbows carried forward too (the upper arms' directions, a low-pass and a turn of
-    # each upper arm a frame) against the same
+    # each upper arm a frame) against the same; and with the lean as the performer's too (two
+    # spines' forward kinematics, a low-pass and a turn of the spine a frame) against the same
     from stylecast.models.gait_amplitude import amplitudes
 
     youthful, active, feminine = (amplitudes("normal", {style: 1.0}) for style in ("youthful", "active", "feminine"))
-    elbows, active = active["elbow_forward"], {**active, "elbow_forward": ()}  # the last row's part
+    # the last rows' parts
+    elbows, lean = active["elbow_forward"], active["performer_lean"]
+    active, youthful = {**active, "elbow_forward": (), "performer_lean": ()}, {**youthful, "performer_lean": ()}
     for feet, overrides, label in (("input", {}, "input"),
                                    ("path", {}, "path (elderly and exhausted)"),
                                    ("path", amplitudes("normal", {"elderly": 1.0}),
@@ -375,7 +378,11 @@ def bench_footlock(model, motion, runs=5, performers=16):
                                    ("stance", {**active, "waving_arms": ((0.0, 1.0),),
                                                "knee_bend": feminine["knee_bend"], "waving_elbows": ((0.0, 0.5),),
                                                "elbow_forward": elbows},
-                                    "stance, active, the walks' elbows forward too")):
+                                    "stance, active, the walks' elbows forward too"),
+                                   ("stance", {**active, "waving_arms": ((0.0, 1.0),),
+                                               "knee_bend": feminine["knee_bend"], "waving_elbows": ((0.0, 0.5),),
+                                               "elbow_forward": elbows, "performer_lean": lean},
+                                    "stance, active, the lean as the performer's too")):
         for pace in ("input", "style"):  # the style's pace (footlock.Pace): the carried feet's IK on top
             each, tick, low, whole = (float(np.median([per_frame(feet, pace, mode, delay, overrides)
                                                        for _ in range(runs)]))

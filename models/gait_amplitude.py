@@ -277,6 +277,17 @@ ELBOW_FORWARDS = {
 # The model card, "Active's elbows forward".
 ELBOW_FORWARD_SHARE = {"active": (0.75, 0.0)}
 
+# The share of the way from the restyle's own lean across to the performer's that the stream
+# takes (``ContactSettings.performer_lean``: the line from the spine's joint to the head,
+# ``footlock.lean.spine_lean``, each low-passed), (walks, runs); none standing and for a style
+# not named. The generator leans its walks to the right: the head sits 2.0 / 2.5 cm right of
+# the hips in held-out walks towards active / youthful (the performer's 0.1, real walks of
+# both styles within 0.6 of upright; held-out, ``runs/s85/lean.py`` outside the repository),
+# and its left-turning walks lean right too (real ones lean into the turn). Towards feminine
+# and exhausted 1.4 and 1.2 (real 0.6 and 0.7), masculine and elderly 0.2 and 0.1: not named.
+# The model card, "Walks lean into a turn".
+LEAN_SHARE = {"active": (1.0, 1.0), "youthful": (1.0, 1.0)}
+
 
 def knee_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float, float], ...]:
     """``ContactSettings.knee_bend``, as ``elbow_points`` with ``KNEE_BENDS`` and
@@ -342,20 +353,35 @@ def amplitude_points(table: Mapping[str, tuple[float, float]], source: str, targ
                  for speed, a, b in zip(PACES[source], table[source], out))
 
 
+def _paced_shares(shares: Mapping[str, tuple[float, float]], source: str, target: Mapping[str, float]
+                  ) -> tuple[tuple[float, float], ...]:
+    """(input speed in cm a frame, share) at the source's walking and running paces: the mix
+    ``target``'s share of ``shares`` ((walks, runs); none for a style not named); () where it
+    is none at both or the source's paces are not known."""
+    mix = {style: weight for style, weight in target.items() if weight > 0}
+    if source not in PACES or not mix:
+        return ()
+    share = sum(weight * np.asarray(shares.get(style, (0.0, 0.0))) for style, weight in mix.items())
+    share = share / sum(mix.values())
+    if not share.any():
+        return ()
+    return tuple((float(speed) / OUTPUT_FPS, float(s)) for speed, s in zip(PACES[source], share))
+
+
 def across_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float], ...]:
     """``ContactSettings.arm_across`` for input of style ``source`` restyled towards the mix
     ``target``: (input speed in cm a frame, the share of the output's across swing kept), at
     the source's walking and running paces, each style of the mix replacing its
     ``ARM_ACROSS_REPLACED`` share (none where not named); () where nothing is replaced or the
     source's paces are not known."""
-    mix = {style: weight for style, weight in target.items() if weight > 0}
-    if source not in PACES or not mix:
-        return ()
-    replaced = sum(weight * np.asarray(ARM_ACROSS_REPLACED.get(style, (0.0, 0.0))) for style, weight in mix.items())
-    replaced = replaced / sum(mix.values())
-    if not replaced.any():
-        return ()
-    return tuple((float(speed) / OUTPUT_FPS, 1.0 - float(r)) for speed, r in zip(PACES[source], replaced))
+    return tuple((speed, 1.0 - replaced) for speed, replaced in _paced_shares(ARM_ACROSS_REPLACED, source, target))
+
+
+def lean_points(source: str, target: Mapping[str, float]) -> tuple[tuple[float, float], ...]:
+    """``ContactSettings.performer_lean`` for input of style ``source`` restyled towards the mix
+    ``target``: (input speed, the share of the way to the performer's lean) at the source's
+    walking and running paces, the mix's ``LEAN_SHARE``; () where none."""
+    return _paced_shares(LEAN_SHARE, source, target)
 
 
 def sway_points(source: str, target: Mapping[str, float], kind: int) -> tuple[tuple[float, float], ...]:
@@ -374,7 +400,7 @@ def sway_points(source: str, target: Mapping[str, float], kind: int) -> tuple[tu
 
 
 def amplitudes(source: str, target: Mapping[str, float]) -> dict:
-    """The twelve settings, by ``ContactSettings`` field name."""
+    """The thirteen settings, by ``ContactSettings`` field name."""
     return {"arm_swing": amplitude_points(ARM_SWINGS, source, target, ARM_SWING_TRIM),
             "hips_bob": amplitude_points(HIPS_BOBS, source, target),
             "arm_across": across_points(source, target),
@@ -386,7 +412,8 @@ def amplitudes(source: str, target: Mapping[str, float]) -> dict:
             "waving_arms": waving_points(source, target),
             "waving_elbows": waving_elbow_points(source, target),
             "knee_bend": knee_points(source, target),
-            "elbow_forward": elbow_forward_points(source, target)}
+            "elbow_forward": elbow_forward_points(source, target),
+            "performer_lean": lean_points(source, target)}
 
 
 def measure_arm_swings(files, cache_dir=None) -> dict[str, tuple[float, float]]:

@@ -196,8 +196,8 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
                   (SK, replace(OTHER_STANCE, stance_standing=0.5), roots, restyled(q, 20.0)),
                   # swings on the input's path, the arms' swing, the hips' bob, the swing across, a
                   # raised hand's sway scaled, the elbows' bend, the hands carried forward, still and
-                  # waving arms held, a waving elbow given back, the knees' bend, the elbows carried
-                  # (``GaitAmplitude``)
+                  # waving arms held, a waving elbow given back, the knees' bend, the elbows carried,
+                  # the lean (``GaitAmplitude``)
                   (SK, replace(ON_INPUT_PATH, pace=((2.0, 1.5),), arm_swing=((2.0, 0.5), (5.0, 1.5)),
                                hips_bob=((2.0, 0.5),), arm_across=((2.0, 0.0), (5.0, 0.5)),
                                wave_sway=((0.0, 1.5), (5.0, 1.0)), raise_sway=((0.0, 0.5), (5.0, 1.0)),
@@ -205,7 +205,8 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
                                arm_forward=((2.0, 0.0, 0.0), (5.0, 0.5, 20.0)), still_arms=((0.0, 0.8),),
                                waving_arms=((0.0, 0.6),), waving_elbows=((0.0, 0.5),),
                                knee_bend=((2.0, 1.0, 25.0), (5.0, 0.5, 40.0)),
-                               elbow_forward=((2.0, 1.0, 15.0), (5.0, 0.5, 5.0))), glide,
+                               elbow_forward=((2.0, 1.0, 15.0), (5.0, 0.5, 5.0)),
+                               performer_lean=((2.0, 1.0), (5.0, 0.5))), glide,
                    restyled(q))]
     together = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
     alone = [FootLock.for_stream(sk, 5, feet, fade_in=30) for sk, feet, _, _ in performers]
@@ -229,8 +230,8 @@ def test_performers_solved_in_one_call_equal_each_solved_alone():
         lifted += not np.array_equal(jobs[3].result, jobs[3].outputs) and not jobs[3].weights.any()
     assert locked > 300 and lifted > 10  # both the lock and the floor step were exercised
     assert np.ptp([lock.pace._shift[1] for lock in together]) > 10.0  # the pace held one body back
-    assert together[5].amplitude._moving == [True] * 16  # the gait amplitude was exercised
-    assert together[2].amplitude._moving == [False, False, True] + [False] * 13
+    assert together[5].amplitude._moving == [True] * 17  # the gait amplitude was exercised
+    assert together[2].amplitude._moving == [False, False, True] + [False] * 14
     assert [lock.locked_frames for lock in together] == [lock.locked_frames for lock in alone]
 
 

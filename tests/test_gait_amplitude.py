@@ -14,10 +14,11 @@ import pytest
 from stylecast.models import data as D
 from stylecast.models.gait_amplitude import (ARM_ACROSS_REPLACED, ARM_FORWARD_SHARE, ARM_FORWARDS, ARM_SWING_TRIM,
                                              ARM_SWINGS, ELBOW_BEND_SHARE, ELBOW_BENDS, ELBOW_FORWARD_SHARE,
-                                             ELBOW_FORWARDS, HIPS_BOBS, KNEE_BEND_SHARE, KNEE_BENDS,
+                                             ELBOW_FORWARDS, HIPS_BOBS, KNEE_BEND_SHARE, KNEE_BENDS, LEAN_SHARE,
                                              RAISED_SWAY_GAIN, STILL_ARM_SHARE, WAVING_ARM_SHARE, WAVING_ELBOW_SHARE,
                                              across_points, amplitude_points, amplitudes, elbow_forward_points,
-                                             elbow_points, forward_points, knee_points, measure_arm_forwards,
+                                             elbow_points, forward_points, knee_points, lean_points,
+                                             measure_arm_forwards,
                                              measure_arm_swings, measure_elbow_bends, measure_elbow_forwards,
                                              measure_hips_bobs, measure_knee_bends, still_points, sway_points,
                                              waving_elbow_points, waving_points)
@@ -95,6 +96,17 @@ def test_across_points_replace_the_named_styles_share_at_the_source_paces():
     assert across_points("normal", {"youthful": 0.5, "elderly": 0.5})[0][1] == pytest.approx(1.0 - walks / 2)
     assert across_points("robot", {"youthful": 1.0}) == ()  # a source of unknown paces: none
     assert amplitudes("normal", {"youthful": 1.0})["arm_across"] == points
+
+
+def test_lean_points_take_the_named_styles_share_at_the_source_paces():
+    walks, runs = LEAN_SHARE["active"]
+    points = lean_points("normal", {"active": 1.0})
+    assert np.asarray(points) == pytest.approx(np.array([[PACES["normal"][0] / 60, walks],
+                                                         [PACES["normal"][1] / 60, runs]]))
+    assert lean_points("normal", {"elderly": 1.0}) == ()  # a style not named keeps the restyle's lean
+    assert lean_points("normal", {"active": 0.5, "elderly": 0.5})[0][1] == pytest.approx(walks / 2)
+    assert lean_points("robot", {"active": 1.0}) == ()  # a source of unknown paces: none
+    assert amplitudes("normal", {"active": 1.0})["performer_lean"] == points
 
 
 def test_the_gain_is_one_at_rest_and_the_line_through_its_points():
@@ -578,6 +590,68 @@ def test_a_walking_stream_carries_its_elbows_forward_as_the_style_and_a_standing
     assert arms_of(GaitAmplitude(replace(FEET["input"], elbow_forward=walk)), still_roots, still, still) is None
 
 
+def leaning(q: np.ndarray, lean_deg: float, sway_deg: float = 2.0, hz: float = 1.0) -> np.ndarray:
+    """A restyle of ``q`` that tilts the spine ``lean_deg`` to the right (about the hips'
+    level forward axis) and sways it ``sway_deg`` side to side at ``hz`` (a stride's sway)."""
+    from stylecast.motion.footlock.lean import leaned
+
+    sway = np.radians(sway_deg) * np.sin(2 * np.pi * hz * np.arange(len(q)) / 60.0)
+    return leaned(q, sway - np.radians(lean_deg))
+
+
+def test_the_spine_lean_reads_the_line_to_the_head_and_its_turn_moves_it_exactly():
+    """``spine_lean`` against forward kinematics by scipy's rotations (the hips' facing level,
+    the angle towards its left), and ``leaned`` tilts it by exactly the angle asked, at any
+    pose of the hips, turning the spine alone."""
+    from scipy.spatial.transform import Rotation
+
+    from stylecast.motion.footlock.lean import HIPS_INDEX, SPINE_INDEX, leaned, spine_lean
+
+    rng = np.random.default_rng(3)
+    q = rot.exp_map(rng.normal(0.0, 0.25, (50, J, 3)))
+    q[:, HIPS_INDEX] = rot.exp_map(rng.normal(0.0, 1.0, (50, 3)) * [0.2, 3.0, 0.2])  # any facing, a little tilt
+    world, head = Rotation.from_quat(q[:, HIPS_INDEX]) * Rotation.from_quat(q[:, SPINE_INDEX]), np.zeros((50, 3))
+    for name in ("Chest", "UpperChest", "Neck", "Head"):
+        j = HUMANOID_BONES.index(name)
+        head += world.apply(np.array(SKELETON.offsets[j]))
+        world = world * Rotation.from_quat(q[:, j])
+    forward = Rotation.from_quat(q[:, HIPS_INDEX]).apply([0.0, 0.0, 1.0]) * [1.0, 0.0, 1.0]
+    left = np.cross([0.0, 1.0, 0.0], forward / np.linalg.norm(forward, axis=1, keepdims=True))
+    np.testing.assert_allclose(spine_lean(q, SKELETON.offsets), np.arctan2(np.sum(head * left, axis=1), head[:, 1]),
+                               atol=1e-12)
+    angle = rng.uniform(-0.2, 0.2, 50)
+    out = leaned(q, angle)
+    np.testing.assert_allclose(spine_lean(out, SKELETON.offsets), spine_lean(q, SKELETON.offsets) + angle, atol=1e-9)
+    others = np.setdiff1d(np.arange(J), [SPINE_INDEX])
+    np.testing.assert_array_equal(out[:, others], q[:, others])
+
+
+def test_a_walking_stream_leans_as_the_performer_and_a_standing_one_not_at_all():
+    """A restyle that leans a walk 4 degrees to the right and sways it: with the share 1 at the
+    walking pace its mean lean goes to the performer's (within a tenth of a degree), its sway
+    about it stays; at half the share, half way; standing, left alone."""
+    from stylecast.motion.footlock.lean import spine_lean
+
+    n, settled = 600, slice(240, None)
+    roots, q = hanging(n, speed=2.0)
+    out = leaning(q, 4.0)
+
+    def lean(rotations):
+        return np.degrees(spine_lean(rotations, SKELETON.offsets))[settled]
+
+    walk = ((2.0, 1.0), (5.0, 1.0))
+    own, restyled = lean(q), lean(out)
+    assert own.mean() - restyled.mean() == pytest.approx(4.0, abs=0.01)  # a lean worth taking away
+    leant = lean(arms_of(GaitAmplitude(replace(FEET["input"], performer_lean=walk)), roots, q, out))
+    assert leant.mean() == pytest.approx(own.mean(), abs=0.1)
+    assert np.ptp(leant - own) == pytest.approx(np.ptp(restyled - own), rel=0.05)  # the sway kept
+    half = lean(arms_of(GaitAmplitude(replace(FEET["input"], performer_lean=((2.0, 0.5), (5.0, 0.5)))), roots, q, out))
+    assert half.mean() == pytest.approx(own.mean() - 2.0, abs=0.1)
+    still_roots, still = hanging(n, speed=0.0)
+    assert arms_of(GaitAmplitude(replace(FEET["input"], performer_lean=walk)), still_roots, still,
+                   leaning(still, 4.0)) is None
+
+
 def test_a_walking_stream_carries_its_hands_forward_as_the_style_and_a_standing_one_not_at_all():
     """Hands swinging about 5 degrees forward of straight down while walking, the style asking
     for 25 at the walking pace: their mean moves there, their swing about it stays, how far
@@ -858,6 +932,8 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
                             waving_elbows=((0.0, 0.5),)))
     settings[1] = replace(settings[1], knee_bend=((2.0, 1.0, 25.0), (5.0, 0.5, 40.0)))
     settings[0] = replace(settings[0], elbow_forward=((2.0, 1.0, 15.0), (5.0, 0.5, 5.0)))
+    settings[1] = replace(settings[1], performer_lean=((2.0, 1.0), (5.0, 0.5)))
+    restyled[1] = leaning(restyled[1], 3.0)
     mixes = [np.ones(n), np.clip(np.arange(n) / 60.0, 0.0, 1.0), np.ones(n), np.ones(n),
              np.clip(np.arange(n) / 90.0, 0, 1), np.clip(np.arange(n) / 30.0, 0.0, 1.0),
              np.clip(np.arange(n) / 45.0, 0.0, 1.0)]
@@ -884,6 +960,7 @@ def test_a_clip_at_once_is_each_stream_a_frame_at_a_time():
     # waving arms held, their elbows half given back
     assert live[1]._moving[12:14] == [True, True] and not live[0]._moving[12]  # and the knees' bend
     assert live[0]._moving[14:16] == [True, True] and not live[1]._moving[14]  # and the elbows carried
+    assert live[1]._moving[16] and not live[0]._moving[16]  # and the lean
 
 
 def test_a_live_change_of_style_moves_the_arms_smoothly():

@@ -46,7 +46,7 @@ _ARM_AT_REST = np.array([1.0, -1.0])[:, None] * LEFT
 HANGING_COS = (0.3, 0.6)
 
 
-def _left_of_hips(rotations: np.ndarray) -> np.ndarray:
+def left_of_hips(rotations: np.ndarray) -> np.ndarray:
     """(n, J, 4) -> (n, 3): the unit level vector towards the humanoid's left, square to the
     hips' facing (UP x the level part of the hips' forward axis)."""
     forward = rot.apply(rotations[:, _TORSO[0]], FORWARD)
@@ -61,7 +61,7 @@ class ArmPlaces(NamedTuple):
 
     parent: np.ndarray  # (n, 2, 4): each shoulder bone's world rotation, the upper arm's parent frame
     hand: np.ndarray  # (n, 2, 3): each hand against its upper arm's joint, world axes
-    left: np.ndarray  # (n, 1, 3): the level unit vector towards the humanoid's left (``_left_of_hips``)
+    left: np.ndarray  # (n, 1, 3): the level unit vector towards the humanoid's left (``left_of_hips``)
     forearm: np.ndarray  # (n, 2, 3): each hand against its elbow, world axes
 
     def across(self) -> np.ndarray:
@@ -91,7 +91,7 @@ def arm_places(rotations: np.ndarray, offsets: np.ndarray) -> ArmPlaces:
     lower = rot.multiply(upper, rotations[:, LOWER_ARM_INDEX])
     forearm = rot.apply(lower, offsets[..., HAND_INDEX, :])
     hand = rot.apply(upper, offsets[..., LOWER_ARM_INDEX, :]) + forearm
-    return ArmPlaces(parent, hand, _left_of_hips(rotations)[:, None], forearm)
+    return ArmPlaces(parent, hand, left_of_hips(rotations)[:, None], forearm)
 
 
 def hand_across(rotations: np.ndarray, offsets: np.ndarray) -> np.ndarray:

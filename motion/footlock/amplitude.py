@@ -61,7 +61,16 @@ the pace, the stream takes the style's amplitudes:
   none standing. The generator bent feminine's knees more than the performer (real feminine
   walks and runs bend them less), and the judges took its runs for other styles'. It runs
   before the legs are solved: a planted foot stays where the lock puts it, the leg in the
-  air swings straighter.
+  air swings straighter;
+- the upper body's lean (``performer_lean``, a style's choice, ``lean``): how far the line
+  from the spine's joint to the head tilts across the hips' facing, low-passed in the INPUT
+  and the OUTPUT, and the spine turned about the hips' level forward axis by a share of the
+  difference: the output leans as the performer does on average, its own sway about it kept,
+  none standing (a raise of one hand leans away from it, as real raises of every style do).
+  The generator leaned its walks to the right (the head 2.0-2.5 cm right of the hips towards
+  active and youthful, the performer's and real walks within 0.6 cm of upright), its
+  left-turning walks too, where real turns lean into the turn. Last, so the arms' parts read
+  the restyle's own torso, and the arms ride on the spine.
 
 Each gain goes with the input's low-passed speed over ground (``ContactSettings.arm_swing``,
 ``hips_bob``: 1 standing, the walks' ratio at the source style's walking pace, the runs' at its
@@ -89,6 +98,7 @@ from ..humanoid import HUMANOID_BONES
 from ..smoothing import TriplePole, lfilter_one_step, smoothstep, triple_pole
 from .across import (UPPER_ARM_INDEX, ArmPlaces, arm_places, elbow_directions, elbow_forward_angle,
                      elbow_forward_turns, forward_turns, move_across, sway_turns, turn_upper_arms)
+from .lean import leaned, spine_lean
 from .pace import TELEPORT_STEP
 from .settings import ContactSettings
 from .still import hand_steps_squared, held, held_aim, offset_signal, still_gate, waving_gate
@@ -150,6 +160,7 @@ WAVING = STILL + 1  # the waving arms' share (one gain)
 WAVING_ELBOW = WAVING + 1  # the share of a waving arm's elbow bend that is the performer's (one gain)
 KNEES = WAVING_ELBOW + 1  # the knees' bend part's share, then its pull
 ELBOWS = KNEES + 2  # the elbows carried forward: the part's share, then its pull
+LEAN = ELBOWS + 2  # the share of the way to the performer's lean (one gain)
 
 # The least knee flexion (radians, of its low-pass) the knees' part divides by, and the range
 # of the scale it gives: a low-pass near straight (a stiff-legged stride) would otherwise ask
@@ -165,6 +176,10 @@ KNEE_SCALE_RANGE = (0.5, 1.5)
 # locomotion's jerk as it was); over 1.5 s, 1.0990 (the model card, "Active carries its
 # hands forward").
 FORWARD_TAU = 45.0
+# The lean part's low-pass (frames, of ``lean.spine_lean``): a walk's upper body sways across
+# once a stride, and over ``amplitude_tau`` 15 % of a 1 Hz sway leaked into the mean and was
+# carried against itself (``tests/test_gait_amplitude.py``); over FORWARD_TAU's 0.75 s, 1 %.
+LEAN_TAU = 45.0
 
 
 def _settled_filter(tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -197,6 +212,7 @@ class Parts(NamedTuple):
     still: bool
     knees: bool
     elbows: bool  # the elbows carried forward
+    lean: bool  # the upper body's lean
 
     @property
     def crossing(self) -> bool:
@@ -262,6 +278,8 @@ class GaitAmplitude:
         # the elbows carried forward: the pair of gains of the hands' (``elbow_forward``)
         self._elbow_share, self._elbow_pull = (_Gain(points, settings.pace_tau, rest=0.0)
                                                for points in _pull_gains(settings.elbow_forward))
+        # the share of the way to the performer's lean (``performer_lean``)
+        self._lean = _Gain(settings.performer_lean, settings.pace_tau, rest=0.0)
         # The low-passes' states, each (3, channels) once started: "arms" of the input arms
         # (``_arm_signal``, CHANNELS), "across" of the hands' places (``_across_signal``, 4),
         # "waving" of the input hands' across swing squared (2), "sway" of each hand's sway
@@ -270,13 +288,14 @@ class GaitAmplitude:
         # "still" of their gates (2), "offset" of the arms' offsets from the input (14), and
         # "hold_across" of the input hands' places across (2), "hold_waving" of their swing
         # about it squared (2) and "waves" of the waving arms' gates (2) (``still``), "knees"
-        # of the output knees' flexion (2), and "elbows" of where the output upper arms point (6)
+        # of the output knees' flexion (2), "elbows" of where the output upper arms point (6), and
+        # "lean" of the input's and the output's lean (2, ``_lean_signal``)
         self._states: dict[str, np.ndarray | None] = {"arms": None, "across": None, "waving": None, "sway": None,
                                                       "bend": None, "forward": None, "steps": None, "still": None,
                                                       "offset": None, "hold_across": None, "hold_waving": None,
-                                                      "waves": None, "knees": None, "elbows": None}
+                                                      "waves": None, "knees": None, "elbows": None, "lean": None}
         # each low-pass's filter and settled state (``_settled_filter``), by key
-        taus = dict.fromkeys(self._states, settings.amplitude_tau) | {"forward": FORWARD_TAU}
+        taus = dict.fromkeys(self._states, settings.amplitude_tau) | {"forward": FORWARD_TAU, "lean": LEAN_TAU}
         self._filters = {key: _settled_filter(tau) for key, tau in taus.items()}
         self._last: np.ndarray | None = None  # (ARMS, 4): the input arms' last quaternions, sign-aligned
         self._last_hands: np.ndarray | None = None  # (2, 3): the input hands' last places (``still``)
@@ -288,12 +307,12 @@ class GaitAmplitude:
         self._first_step = True  # the stream's first step is yet to come
         # arms, hips, across, wave, raise, the bend's share and pull, the forward part's, the
         # still and the waving arms', the waving elbows', the knees' share and pull, the
-        # elbows' forward part's: any gain off its rest so far (else the work is skipped)
+        # elbows' forward part's, the lean's: any gain off its rest so far (else the work is skipped)
         self._moving = [False] * len(self._gains)
 
     def set_points(self, arm_swing=(), hips_bob=(), arm_across=(), wave_sway=(), raise_sway=(),
                    elbow_bend=(), arm_forward=(), still_arms=(), waving_arms=(), waving_elbows=(),
-                   knee_bend=(), elbow_forward=()) -> None:
+                   knee_bend=(), elbow_forward=(), performer_lean=()) -> None:
         """New amplitudes (a new model, direction or style; () = the input's own), as
         (input speed cm/frame, gain) points (``elbow_bend``, ``arm_forward``, ``knee_bend``,
         ``elbow_forward``: (speed, share, degrees)); the gains move to them over the low-pass."""
@@ -305,6 +324,7 @@ class GaitAmplitude:
         self._still.set_points(still_arms)
         self._waving.set_points(waving_arms)
         self._waving_elbow.set_points(waving_elbows)
+        self._lean.set_points(performer_lean)
         for gain, points in zip((self._bend_share, self._bend_pull, self._forward_share, self._forward_pull,
                                  self._knee_share, self._knee_pull, self._elbow_share, self._elbow_pull),
                                 (*_pull_gains(elbow_bend), *_pull_gains(arm_forward), *_pull_gains(knee_bend),
@@ -320,28 +340,28 @@ class GaitAmplitude:
     @property
     def active(self) -> Parts:
         """Whether the arms', the hips', the across, the wave's, the raise's, the elbows' bend's,
-        the forward, the still arms', the knees' and the elbows' forward parts have work
+        the forward, the still arms', the knees', the elbows' forward and the lean parts have work
         (``_gains``' order, each pull part's two gains as one, the still and the waving arms'
         too): a gain set, or one still easing back to its rest. Their
         low-passes run only then (a session that never had a gain costs nothing but its
         speed), and start settled on the frame they start at."""
         on = [gain.on or moving for gain, moving in zip(self._gains, self._moving)]
         return Parts(*on[:BEND], on[BEND] or on[BEND + 1], on[FORWARD] or on[FORWARD + 1], on[STILL] or on[WAVING],
-                     on[KNEES] or on[KNEES + 1], on[ELBOWS] or on[ELBOWS + 1])
+                     on[KNEES] or on[KNEES + 1], on[ELBOWS] or on[ELBOWS + 1], on[LEAN])
 
     @property
     def _gains(self) -> tuple[_Gain, ...]:
         return (self._arms, self._hips, self._across, self._wave, self._raise, self._bend_share, self._bend_pull,
                 self._forward_share, self._forward_pull, self._still, self._waving, self._waving_elbow,
-                self._knee_share, self._knee_pull, self._elbow_share, self._elbow_pull)
+                self._knee_share, self._knee_pull, self._elbow_share, self._elbow_pull, self._lean)
 
     def apply(self, roots: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, heights: np.ndarray,
               mix: np.ndarray | None = None, offsets: np.ndarray | None = None
               ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The next frames in order: input roots (n, 3), input and restyled rotations (n, J, 4),
         the output root's heights (n,), the share of the restyle shown (n,) (None: all of
-        it) and the bone offsets (J, 3) (needed with ``arm_across``, the sways, ``arm_forward``
-        and ``still_arms``) -> the outputs with the arms' swing scaled (a new array) and the new
+        it) and the bone offsets (J, 3) (needed with ``arm_across``, the sways, ``arm_forward``,
+        ``still_arms`` and ``performer_lean``) -> the outputs with the arms' swing scaled (a new array) and the new
         heights, each None where nothing changes."""
         n = len(roots)
         parts = self.active
@@ -381,7 +401,7 @@ class GaitAmplitude:
             current = outputs if swung is None else swung
             mean = self._low_pass("elbows", _elbow_signal(current))
             if self._moving[ELBOWS] or self._moving[ELBOWS + 1]:
-                swung = _elbows_carried(current, mean, extra[:, ELBOWS:])
+                swung = _elbows_carried(current, mean, extra[:, ELBOWS:LEAN])
         if parts.still:
             inputs, current = np.asarray(inputs, np.float64), outputs if swung is None else swung
             hands = arm_places(inputs, offsets)
@@ -396,6 +416,11 @@ class GaitAmplitude:
             mean = self._low_pass("knees", knee_flexion(current))
             if self._moving[KNEES] or self._moving[KNEES + 1]:
                 swung = _straightened(current, mean, extra[:, KNEES:ELBOWS])
+        if parts.lean:
+            current = outputs if swung is None else swung
+            mean = self._low_pass("lean", _lean_signal(np.asarray(inputs, np.float64), current, offsets))
+            if self._moving[LEAN]:
+                swung = _leaned_towards(current, mean, extra[:, LEAN])
         return swung, bobbed
 
     def _across_block(self, inputs, outputs, extra, offsets) -> np.ndarray | None:
@@ -533,6 +558,19 @@ def _elbows_carried(outputs: np.ndarray, mean: np.ndarray, extra: np.ndarray) ->
     return out
 
 
+def _lean_signal(inputs: np.ndarray, outputs: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(n, 2) radians: the input's and the output's lean (``lean.spine_lean``), what the lean
+    part low-passes."""
+    return np.stack([spine_lean(inputs, offsets), spine_lean(outputs, offsets)], axis=1)
+
+
+def _leaned_towards(outputs: np.ndarray, mean: np.ndarray, share: np.ndarray) -> np.ndarray:
+    """The outputs (n, J, 4) with the spine turned the ``share`` (n,) of the way from the
+    output's low-passed lean to the input's (``mean`` (n, 2), the low-pass of ``_lean_signal``):
+    its own sway about its mean kept."""
+    return leaned(outputs, share * (mean[:, 0] - mean[:, 1]))
+
+
 def _across_signal(inputs: np.ndarray, outputs: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, ArmPlaces]:
     """(n, 4) cm: each hand's place across the body against its shoulder joint
     (``across.arm_places``), the input's (left, right) then the output's; and the output's
@@ -599,9 +637,9 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
     """One frame of each of many streams (the daemon's tick): input roots (P, 3), input and
     restyled rotations (P, J, 4) and output root heights (P,) (``outputs`` and ``heights``
     changed in place), the share shown of each and the bone offsets, (J, 3) or each
-    stream's (P, J, 3) (needed with ``arm_across``, the sways, ``arm_forward`` and ``still_arms``);
-    the same as each ``apply``, the arms of all in one vectorised pass (per stream, numpy's per-call cost
-    would be most of it)."""
+    stream's (P, J, 3) (needed with ``arm_across``, the sways, ``arm_forward``, ``still_arms`` and
+    ``performer_lean``); the same as each ``apply``, the arms of all in one vectorised pass (per
+    stream, numpy's per-call cost would be most of it)."""
     active = [g.active for g in amplitudes]
     extra = np.array([g._extras_of_frame(x, z, f) for g, (x, _, z), f in zip(amplitudes, roots.tolist(), shown)])
     for k, (g, parts) in enumerate(zip(amplitudes, active)):
@@ -624,6 +662,7 @@ def amplitude_frames(amplitudes: list[GaitAmplitude], roots: np.ndarray, inputs:
     _still_frames(amplitudes, [k for k, parts in enumerate(active) if parts.still], inputs, outputs, extra, offsets)
     _pull_frames(amplitudes, [k for k, parts in enumerate(active) if parts.knees], outputs, extra, "knees",
                  knee_flexion, KNEES, _straightened)
+    _lean_frames(amplitudes, [k for k, parts in enumerate(active) if parts.lean], inputs, outputs, extra, offsets)
 
 
 def _low_pass_streams(streams: list[GaitAmplitude], key: str, signal: np.ndarray) -> np.ndarray:
@@ -699,6 +738,19 @@ def _pull_frames(amplitudes, at, outputs, extra, key: str, flexion, gains: int, 
     if rows:
         at_rows = [at[i] for i in rows]
         outputs[at_rows] = pulled(outputs[at_rows], mean[rows], extra[at_rows, gains:gains + 2])
+
+
+def _lean_frames(amplitudes, at, inputs, outputs, extra, offsets) -> None:
+    """``amplitude_frames``' upper bodies leaned as their performers' for the streams ``at``, last."""
+    if not at:
+        return
+    leaning = [amplitudes[k] for k in at]
+    mean = _low_pass_streams(leaning, "lean", _lean_signal(inputs[at], outputs[at],
+                                                           offsets if offsets.ndim == 2 else offsets[at]))
+    rows = [i for i, g in enumerate(leaning) if g._moving[LEAN]]
+    if rows:
+        at_rows = [at[i] for i in rows]
+        outputs[at_rows] = _leaned_towards(outputs[at_rows], mean[rows], extra[at_rows, LEAN])
 
 
 def _forward_frames(amplitudes, at, outputs, extra, offsets) -> None:

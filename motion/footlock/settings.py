@@ -176,6 +176,10 @@ class ContactSettings:
     # of the way from the output's own low-passed angle to the style's, the upper arms turned
     # about the level axis across the body, none standing.
     elbow_forward: tuple[tuple[float, float, float], ...] = ()
+    # ...and (input speed, share) of the way from the output's low-passed lean across (the line
+    # from the spine's joint to the head, ``lean.spine_lean``) to the input's, the spine turned
+    # about the hips' level forward axis, none standing.
+    performer_lean: tuple[tuple[float, float], ...] = ()
     amplitude_tau: float = 15.0
 
 
@@ -274,14 +278,14 @@ def stance_standing_of(restyler, weights=None) -> float:
 # ``amplitudes_of`` for a restyler that adds no gait amplitude: the input's own.
 NO_AMPLITUDES = {"arm_swing": (), "hips_bob": (), "arm_across": (), "wave_sway": (), "raise_sway": (),
                  "elbow_bend": (), "arm_forward": (), "still_arms": (), "waving_arms": (),
-                 "waving_elbows": (), "knee_bend": (), "elbow_forward": ()}
+                 "waving_elbows": (), "knee_bend": (), "elbow_forward": (), "performer_lean": ()}
 
 
 def amplitudes_of(restyler, weights=None) -> dict:
     """``ContactSettings.arm_swing``, ``hips_bob``, ``arm_across``, ``wave_sway``, ``raise_sway``,
-    ``elbow_bend``, ``arm_forward``, ``still_arms``, ``waving_arms``, ``waving_elbows``, ``knee_bend`` and
-    ``elbow_forward``, by name, with ``restyler`` (towards the style mix ``weights``, where it takes one): () each
-    for a restyler without them."""
+    ``elbow_bend``, ``arm_forward``, ``still_arms``, ``waving_arms``, ``waving_elbows``, ``knee_bend``,
+    ``elbow_forward`` and ``performer_lean``, by name, with ``restyler`` (towards the style mix
+    ``weights``, where it takes one): () each for a restyler without them."""
     if not hasattr(restyler, "amplitudes"):
         return dict(NO_AMPLITUDES)
     return {name: tuple(points) for name, points in restyler.amplitudes(weights).items()}
