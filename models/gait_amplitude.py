@@ -282,7 +282,7 @@ ELBOW_FORWARD_SHARE = {"active": (0.75, 0.0)}
 # ``footlock.lean.spine_lean``, each low-passed), (walks, runs); none standing and for a style
 # not named. The generator leans its walks to the right: the head sits 2.0 / 2.5 cm right of
 # the hips in held-out walks towards active / youthful (the performer's 0.1, real walks of
-# both styles within 0.6 of upright; held-out, ``runs/s85/lean.py`` outside the repository),
+# both styles within 0.7 of upright; held-out, ``runs/s85/lean.py`` outside the repository),
 # and its left-turning walks lean right too (real ones lean into the turn). Towards feminine
 # and exhausted 1.4 and 1.2 (real 0.6 and 0.7), masculine and elderly 0.2 and 0.1: not named.
 # The model card, "Walks lean into a turn".

@@ -68,7 +68,7 @@ the pace, the stream takes the style's amplitudes:
   difference: the output leans as the performer does on average, its own sway about it kept,
   none standing (a raise of one hand leans away from it, as real raises of every style do).
   The generator leaned its walks to the right (the head 2.0-2.5 cm right of the hips towards
-  active and youthful, the performer's and real walks within 0.6 cm of upright), its
+  active and youthful, the performer's and real walks within 0.7 cm of upright), its
   left-turning walks too, where real turns lean into the turn. Last, so the arms' parts read
   the restyle's own torso, and the arms ride on the spine.
 

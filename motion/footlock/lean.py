@@ -4,10 +4,10 @@ of the spine that tilts it further.
 
 The multistyle generator leans its walks' upper bodies to the right: the head 2.0-2.5 cm to
 the right of the hips towards active and youthful where the performer's held-out walks lean
-0.1 cm and real walks of every style within 0.7, and its left-turning walks lean right too
-where a real turn leans into it (the model card, "Walks lean into a turn"). The lean is read
-from the spine's joint, the point the correction turns about, so that a turn by an angle
-tilts it by exactly that angle (read from the hips it moved two thirds as far: the
+0.1 cm and real walks of every style within 0.8 on average, and its left-turning walks lean
+right too where a real turn leans into it (the model card, "Walks lean into a turn"). The
+lean is read from the spine's joint, the point the correction turns about, so that a turn by
+an angle tilts it by exactly that angle (read from the hips it moved two thirds as far: the
 hips-to-spine bone does not turn).
 """
 
