@@ -17,10 +17,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+from stylecast.models.checkpoint import DEFAULT_MODEL  # the one definition; imports no torch
 from stylecast.motion.errors import UserError
 
 from .config import DaemonConfig
-from .restylers import DEFAULT_MODEL, IdentityRestyler, load_restyler
+from .restylers import IdentityRestyler, load_restyler
 
 log = logging.getLogger("stylecast.daemon")
 DEFAULT_CLIP = "bandai/dataset-2/data/dataset-2_walk_normal_001.bvh.gz"

@@ -13,8 +13,6 @@ from scipy.spatial.transform import Rotation
 
 from stylecast.motion.errors import UserError
 
-DEFAULT_MODEL = "normal2exhausted"
-
 
 class IdentityRestyler:
     """Returns every word unchanged: the daemon's machinery without a model."""
