@@ -23,11 +23,11 @@ KNEE_HINGE = 3.0
 # height off its hip-ankle line grows as the square root of how far the ankle is inside
 # reach, so a planted leg held straight bent by 1.3 cm in the frame its target came
 # within reach (a standing VTuber's knee twitching, 4.5x the input's largest jerk). 1 mm
-# took most of that; 5 mm (2026-12-08) also takes the heel strike a target past full
+# took most of that; 5 mm (2026-12-08) also eases the heel strike a target past full
 # stretch gives, where a clamp stalled the knee and let it fold 1 -> 15 degrees in the
 # next frame: the multistyle model's walks towards youthful, the worst held-out clip's
-# largest one-frame jerk 3.44 -> 1.70x the input's, clips over 1.5x 13 -> 4 of 61, style,
-# action and the other targets as before (1 cm: 1 clip, but 0.9 points of style on a judge,
+# largest one-frame jerk 3.44 -> 1.70x the input's, clips over 1.5x 13 -> 4 of 61, its style
+# and action and the other targets' as before (1 cm: 1 clip, but 0.9 points of style on a judge,
 # and knees held straight bent 4.8 degrees more at the 99th percentile of standing frames,
 # 2.0 at 5 mm). The ankle falls short of a target at full stretch by SOFT_REACH / e.
 SOFT_REACH = 0.5
