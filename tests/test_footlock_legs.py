@@ -198,6 +198,37 @@ def test_a_knee_stays_smooth_through_a_heel_strike_past_full_stretch():
     assert knee_jerk < 10 * target_jerk
 
 
+def test_a_target_the_restyled_leg_already_reaches_is_solved_exactly_near_full_stretch():
+    """A leg 3 mm short of full stretch (inside SOFT_REACH) asked to keep its ankle where it
+    is: exact, so a leg the restyle left alone is not bent. With the easing fixed at SOFT_REACH
+    short of full reach, this ankle was solved 0.35 mm short and the knee moved 2.0 mm (an
+    identity restyle of a Bandai walk moved a knee 0.59 mm); the same leg asked 2 mm further
+    is still eased, not clamped."""
+    from stylecast.motion.footlock.legs import SOFT_REACH, SOFT_REACH_LEAST
+
+    q = rot.identity((1, J))
+    lower = HUMANOID_BONES.index("LeftLowerLeg")
+    roots = np.array([[0.0, 100.0, 0.0]])
+    straight = leg_chain(roots, q, SK.offsets)[0]
+    reach = np.linalg.norm(straight[0, 0, 2] - straight[0, 0, 0])
+    bend = 0.0
+    for _ in range(60):  # the knee's bend that leaves the ankle 3 mm inside full reach
+        q[0, lower] = rot.exp_map(np.array([bend, 0.0, 0.0]))
+        pos = leg_chain(roots, q, SK.offsets)[0]
+        short = reach - np.linalg.norm(pos[0, 0, 2] - pos[0, 0, 0])
+        bend += 0.5 * (0.3 - short) / max(short, 1e-3) * max(bend, 0.02)
+    assert SOFT_REACH_LEAST < short < SOFT_REACH and abs(short - 0.3) < 1e-3
+    world = leg_chain(roots, q, SK.offsets)[1]
+    solved = q.copy()
+    solved[:, LEG_INDEX[:, :3]] = solve_legs(roots, q, SK.offsets, pos[:, :, 2], world[:, :, 2])
+    after = leg_chain(roots, solved, SK.offsets)[0]
+    np.testing.assert_allclose(after[0, 0, :3], pos[0, 0, :3], atol=1e-6)  # hip, knee, ankle where they were
+    further = pos[:, :, 2] + [0.0, -0.2, 0.0]  # 2 mm further down: beyond where the leg reaches now
+    solved[:, LEG_INDEX[:, :3]] = solve_legs(roots, q, SK.offsets, further, world[:, :, 2])
+    miss = np.linalg.norm(leg_chain(roots, solved, SK.offsets)[0][0, 0, 2] - further[0, 0])
+    assert 1e-4 < miss < SOFT_REACH / np.e
+
+
 def test_a_foot_that_comes_down_onto_the_floor_is_eased_into_the_lift():
     """A foot held up in the air (not planted) that the restyle lowers onto the floor by
     straightening its knee, a little out of its hinge: the floor step bends the leg in by

@@ -258,13 +258,7 @@ def test_restyle_path_with_an_identity_model_reproduces_the_input():
     p_in, _ = forward_kinematics(clip)
     p_out, _ = forward_kinematics(out)
     assert out.num_frames == clip.num_frames
-    # Centimetres. The leg IK eases the last SOFT_REACH (5 mm) of a leg's reach, so a planted
-    # leg the restyle left nearly straight is solved a little shorter: this clip's right knee
-    # moves 0.59 mm, its ankle 0.08 (at 1 mm of easing, 1e-6); the rest of the body is exact.
-    leg = np.array([name.split("_")[0] in ("UpperLeg", "LowerLeg", "Foot", "Toes") for name in clip.skeleton.names])
-    moved = np.abs(p_out - p_in).max(axis=(0, 2))
-    assert moved[~leg].max() < 1e-4
-    assert moved[leg].max() < 0.1
+    assert np.abs(p_out - p_in).max() < 0.05  # centimetres
 
 
 @needs_data

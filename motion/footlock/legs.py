@@ -27,10 +27,17 @@ KNEE_HINGE = 3.0
 # stretch gives, where a clamp stalled the knee and let it fold 1 -> 15 degrees in the
 # next frame: the multistyle model's walks towards youthful, the worst held-out clip's
 # largest one-frame jerk 3.44 -> 1.70x the input's, clips over 1.5x 13 -> 4 of 61, its style
-# and action and the other targets' as before (1 cm: 1 clip, but 0.9 points of style on a judge,
-# and knees held straight bent 4.8 degrees more at the 99th percentile of standing frames,
-# 2.0 at 5 mm). The ankle falls short of a target at full stretch by SOFT_REACH / e.
+# and action and the other targets' as before (1 cm: 1 clip, but 0.9 points of style on a judge).
+# The easing starts where the restyled leg itself reaches, when that is nearer full stretch
+# (``_soft_reach``), so a target the restyled leg already reaches is solved exactly: from a
+# fixed 5 mm, nearly straight legs the restyle left alone were solved shorter (an identity
+# restyle moved a Bandai walk's knee 0.59 mm; towards youthful standing knees bent 2.0 degrees
+# more at the 99th percentile of frames). The ankle falls short of a target at full stretch by
+# at most SOFT_REACH / e.
 SOFT_REACH = 0.5
+# cm short of full stretch that is always eased, however straight the restyled leg: a straight
+# leg whose target crosses full stretch still bends smoothly (the twitch above).
+SOFT_REACH_LEAST = 0.1
 
 
 def leg_chain(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray):
@@ -94,13 +101,17 @@ def knee_direction(legs: np.ndarray, world: np.ndarray) -> np.ndarray:
     return own + (np.maximum(-forward, 0.0) + KNEE_HINGE / (1.0 + (size / KNEE_HINGE) ** 2)) * ahead
 
 
-def _soft_reach(dist: np.ndarray, reach) -> np.ndarray:
-    """Hip-to-target distances -> the distances the leg IK solves for: unchanged up to
-    SOFT_REACH short of full ``reach``, then approaching it exponentially ("soft IK"), so
-    the knee moves smoothly as a target crosses full stretch. The ankle falls short of a
-    target there by at most SOFT_REACH / e (1.8 mm) at full stretch, more beyond it."""
-    soft = reach - SOFT_REACH
-    eased = soft + SOFT_REACH * (1.0 - np.exp(-np.maximum(dist - soft, 0.0) / SOFT_REACH))
+def _soft_reach(dist: np.ndarray, reach, own: np.ndarray) -> np.ndarray:
+    """Hip-to-target distances -> the distances the leg IK solves for: unchanged up to where
+    the easing starts, then approaching full ``reach`` exponentially ("soft IK"), so the knee
+    moves smoothly as a target crosses full stretch. The easing starts SOFT_REACH short of
+    full reach, or where the restyled leg itself reaches (``own``, its hip-to-ankle distance)
+    if that is nearer, but at least SOFT_REACH_LEAST short: a target where the restyled
+    ankle already is stays exact. The ankle falls short of a target there by at most
+    SOFT_REACH / e (1.8 mm) at full stretch, more beyond it."""
+    soft = np.clip(own, reach - SOFT_REACH, reach - SOFT_REACH_LEAST)
+    width = reach - soft
+    eased = soft + width * (1.0 - np.exp(-np.maximum(dist - soft, 0.0) / width))
     return np.where(dist > soft, eased, dist)
 
 
@@ -108,7 +119,7 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
                foot_world: np.ndarray, chain: tuple | None = None) -> np.ndarray:
     """Two-bone IK of both legs: local rotations (n, 2, 3, 4) of UpperLeg, LowerLeg and
     Foot that put each ankle on ``ankle_target`` (n, 2, 3) (as near as the leg reaches,
-    eased within SOFT_REACH of full stretch), bend each knee the way it folds in
+    eased near full stretch: ``_soft_reach``), bend each knee the way it folds in
     ``rotations`` (``knee_direction``) and give the foot the world rotation ``foot_world``
     (n, 2, 4); the hips are those of ``rotations``; ``offsets`` as ``leg_chain``'s; ``chain``:
     ``leg_chain``'s result for these, where the caller has it already."""
@@ -117,7 +128,8 @@ def solve_legs(roots: np.ndarray, rotations: np.ndarray, offsets: np.ndarray, an
     shin = np.linalg.norm(offsets[..., LEG_INDEX[:, 2], :], axis=-1)  # knee to ankle
     socket, knee = pos[:, :, 0], pos[:, :, 1]
     to_target = ankle_target - socket
-    dist = _soft_reach(np.linalg.norm(to_target, axis=-1), thigh + shin)
+    own = np.linalg.norm(pos[:, :, 2] - socket, axis=-1)  # where the restyled leg reaches
+    dist = _soft_reach(np.linalg.norm(to_target, axis=-1), thigh + shin, own)
     dist = np.clip(dist, np.abs(thigh - shin) + 1e-6, thigh + shin - 1e-6)
     axis = _unit(to_target)
     along = (thigh ** 2 - shin ** 2 + dist ** 2) / (2 * dist)  # law of cosines
