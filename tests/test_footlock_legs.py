@@ -204,21 +204,22 @@ def test_a_target_the_restyled_leg_already_reaches_is_solved_exactly_near_full_s
     short of full reach, this ankle was solved 0.35 mm short and the knee moved 2.0 mm (an
     identity restyle of a Bandai walk moved a knee 0.59 mm); the same leg asked 2 mm further
     is still eased, not clamped."""
+    from scipy.optimize import brentq
+
     from stylecast.motion.footlock.legs import SOFT_REACH, SOFT_REACH_LEAST
 
     q = rot.identity((1, J))
     lower = HUMANOID_BONES.index("LeftLowerLeg")
     roots = np.array([[0.0, 100.0, 0.0]])
-    straight = leg_chain(roots, q, SK.offsets)[0]
-    reach = np.linalg.norm(straight[0, 0, 2] - straight[0, 0, 0])
-    bend = 0.0
-    for _ in range(60):  # the knee's bend that leaves the ankle 3 mm inside full reach
-        q[0, lower] = rot.exp_map(np.array([bend, 0.0, 0.0]))
-        pos = leg_chain(roots, q, SK.offsets)[0]
-        short = reach - np.linalg.norm(pos[0, 0, 2] - pos[0, 0, 0])
-        bend += 0.5 * (0.3 - short) / max(short, 1e-3) * max(bend, 0.02)
-    assert SOFT_REACH_LEAST < short < SOFT_REACH and abs(short - 0.3) < 1e-3
-    world = leg_chain(roots, q, SK.offsets)[1]
+
+    def bent(angle):  # the left leg with its knee folded by ``angle``: joint positions, world rotations
+        q[0, lower] = rot.exp_map(np.array([angle, 0.0, 0.0]))
+        return leg_chain(roots, q, SK.offsets)[:2]
+
+    reach = np.linalg.norm(np.subtract(*bent(0.0)[0][0, 0, [2, 0]]))
+    inside = lambda angle: reach - np.linalg.norm(np.subtract(*bent(angle)[0][0, 0, [2, 0]]))  # noqa: E731
+    pos, world = bent(brentq(lambda angle: inside(angle) - 0.3, 0.0, 0.5))  # the ankle 3 mm inside full reach
+    assert SOFT_REACH_LEAST < 0.3 < SOFT_REACH
     solved = q.copy()
     solved[:, LEG_INDEX[:, :3]] = solve_legs(roots, q, SK.offsets, pos[:, :, 2], world[:, :, 2])
     after = leg_chain(roots, solved, SK.offsets)[0]
