@@ -942,34 +942,44 @@ def test_gait_statistics_tell_real_styles_apart_on_real_walks(bandai_root):
 
 
 
-def test_held_out_takes_a_frame_late_hold_as_their_input(bandai_root):
-    """Every held-out normal Bandai take a frame late, a restyle that changes nothing but its
-    timing, holds within 5 % of the input's speed where the input holds still (1.02x): its
-    walks within 15 % (the head's holds in a walk are short, 1.11-1.13x). Counted frame by
-    frame (``min_frames=1``), the swinging hands' and the bobbing head's turns were holds, and
-    the same copy scored 1.10x overall, its walks 1.24-1.25x and its runs 2.19x."""
+def test_held_out_takes_a_frame_late_pass_every_judge_free_goal(bandai_root):
+    """The instrument's known-good case on real motion: every held-out normal Bandai take a frame
+    late (frames 1 on against frames 0 on), a restyle that changes nothing but its timing, reads
+    as the input on every judge-free measure (jerk 1.001, largest one-frame jerk 1.02, slide 1.05,
+    skating and step height 1.00, holds 1.02) but the timing sync, there to see it (0.95).
+    Counted frame by frame (``min_frames=1``, the holds until 2026-12-08) the swinging hands' and
+    the bobbing head's turns were holds, and the same copy held 1.10x the input's, its runs 2.19x."""
     from stylecast.models.data import bandai_skeleton, files_for_style, list_files, load_motion
+    from stylecast.models.eval_measures import clip_measures, summarise
 
     files = list_files(bandai_root / "dataset-2" / "data")
     skeleton = bandai_skeleton(files)
-    by_action: dict[str, list] = {}
-    for f in files_for_style(files, "normal", "val"):
-        m = load_motion(f)
-        by_action.setdefault(f.action, []).append(M.world_positions(m.rotations, m.root_positions, skeleton))
+    takes = [load_motion(f) for f in files_for_style(files, "normal", "val")]
+    clips = [clip_measures(m.rotations[1:], m.rotations[:-1], m.root_positions[1:], m.root_positions[:-1], skeleton)
+             for m in takes]
+    late = summarise(clips, [], [], [0] * len(clips), 0, ["normal"], ["any"])
+    assert late["jerk_ratio"]["all"] < 1.01 and late["peak_jerk_ratio"] < 1.1
+    assert late["slide_ratio"] < 1.1 and late["skate_ratio"] < 1.02 and abs(late["step_height_ratio"] - 1) < 0.01
+    assert late["hold_ratio"] < 1.05
+    assert 0.9 < late["timing_sync"] < 0.99
 
-    def ratios(min_frames: int) -> dict[str, float]:
-        """{action, and "all"}: the late copies' speed over the input's where the input holds."""
-        samples = {}
-        for action, takes in by_action.items():
-            masks = [M.held(p, min_frames) for p in takes]
-            samples[action] = [np.concatenate([M.hold_samples(q, m) for q, m in zip(copies, masks)])
-                               for copies in (takes, [np.concatenate([p[:1], p[:-1]]) for p in takes])]
-        samples["all"] = [np.concatenate([s[k] for s in samples.values()]) for k in (0, 1)]
-        return {a: late.mean() / own.mean() for a, (own, late) in samples.items() if len(own)}
+    def hold_ratios_frame_by_frame() -> tuple[float, float]:
+        """The late copies' holds over the input's counted frame by frame: every take, the runs."""
+        ratios = []
+        for chosen in (takes, [m for m in takes if m.file.action == "run"]):
+            own, moved = [], []
+            for m in chosen:
+                p = M.world_positions(m.rotations, m.root_positions, skeleton)
+                masks = M.held(p[1:], min_frames=1)
+                own.append(M.hold_samples(p[1:], masks))
+                moved.append(M.hold_samples(p[:-1], masks))
+            ratios.append(np.concatenate(moved).mean() / np.concatenate(own).mean())
+        return ratios[0], ratios[1]
 
-    held_now, frame_by_frame = ratios(M.HOLD_FRAMES), ratios(1)
-    assert held_now["all"] < 1.05 and all(v < 1.15 for v in held_now.values()), held_now
-    assert frame_by_frame["all"] > 1.08 and frame_by_frame["run"] > 2.0, frame_by_frame
+    every, runs = hold_ratios_frame_by_frame()
+    assert every > 1.08 and runs > 2.0, (every, runs)
+
+
 
 def real_statistic(bandai_root, read, action: str, *styles: str) -> list[list[float]]:
     """``read`` (the hips' facing, positions -> a figure) of every real Bandai take of
