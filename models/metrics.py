@@ -94,12 +94,13 @@ HOLD_JOINTS = ("LeftHand", "RightHand", "Head")
 HOLD_SPEED = 0.15
 # ...for at least this many frames in a row (a sixth of a second at 60 fps): a hold, not the
 # frame or two in which a swinging hand turns or a walking head bobs through its top. Counted
-# frame by frame, those turns made a copy of each held-out normal take lagged by one frame, which
+# frame by frame, those turns made a copy of each held-out normal take one frame late, which
 # holds nothing less than its input, score 1.10x the input's holds (walks 1.24-1.25x, runs
-# 2.19x; two frames: 1.19x, walks 1.49-1.50x, over the 1.5 goal), so the measure read a restyle's
-# timing as drift; with 10 frames 1.02x (walks 1.11-1.13x) and 1.04x (the model card, "A hold
-# lasts a sixth of a second"). A held-out raise holds its hand up 20-30 frames (median), the
-# head through a wave for hundreds; a walking head's runs below the speed last 4 (median).
+# 2.19x; two frames late 1.19x, walks 1.49-1.50x, at the 1.5 goal): the measure read a
+# restyle's timing as drift. Held 10 frames: 1.02x (walks 1.11-1.13x), two frames late 1.04x
+# (the model card, "A hold lasts a sixth of a second"). A held-out raise holds its hand up for
+# 20-30 frames (median), the head through a wave for hundreds; a walking head stays under the
+# speed for 4 frames at a time (median).
 HOLD_FRAMES = 10
 
 
