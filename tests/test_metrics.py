@@ -619,6 +619,23 @@ def test_a_held_hand_that_drifts_fails_the_hold_measure_though_jerk_cannot_see_i
 
 
 
+def test_a_hold_is_a_run_of_hold_frames_kept_whole_and_a_shorter_one_is_none():
+    """A hand that moves 1 cm a frame but for still runs of ``HOLD_FRAMES`` frames (at the
+    take's start, in its middle, at its end) and one frame shorter: the long runs are held,
+    every frame of them, the short one not at all; frame by frame (``min_frames=1``) all are."""
+    n = M.HOLD_FRAMES
+    steps = np.ones(8 * n)  # cm a frame
+    still = [range(0, n), range(3 * n, 4 * n - 1), range(5 * n, 6 * n), range(7 * n, 8 * n)]
+    for run in still:
+        steps[list(run)] = 0.0
+    p = np.zeros((len(steps) + 1, J, 3))
+    p[1:, HUMANOID_BONES.index("LeftHand"), 0] = np.cumsum(steps)
+    want = np.zeros(len(steps), bool)
+    for run in (still[0], still[2], still[3]):
+        want[list(run)] = True
+    assert np.array_equal(M.held(p)["LeftHand"], want)
+    assert np.array_equal(M.held(p, min_frames=1)["LeftHand"], steps == 0)
+
 def test_a_copy_a_frame_late_holds_as_its_input_where_a_frame_by_frame_mask_did_not():
     """The known-good case of the holds: the input itself one frame late (a restyle that changes
     nothing but its timing) holds what the input holds. Counted frame by frame, the waving
