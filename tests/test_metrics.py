@@ -618,7 +618,6 @@ def test_a_held_hand_that_drifts_fails_the_hold_measure_though_jerk_cannot_see_i
     assert abs(jerk_ratio - 1) < 0.01
 
 
-
 def test_a_hold_is_a_run_of_hold_frames_kept_whole_and_a_shorter_one_is_none():
     """A hand that moves 1 cm a frame but for still runs of ``HOLD_FRAMES`` frames (at the
     take's start, in its middle, at its end) and one frame shorter: the long runs are held,
@@ -636,6 +635,7 @@ def test_a_hold_is_a_run_of_hold_frames_kept_whole_and_a_shorter_one_is_none():
     assert np.array_equal(M.held(p)["LeftHand"], want)
     assert np.array_equal(M.held(p, min_frames=1)["LeftHand"], steps == 0)
 
+
 def test_a_copy_a_frame_late_holds_as_its_input_where_a_frame_by_frame_mask_did_not():
     """The known-good case of the holds: the input itself one frame late (a restyle that changes
     nothing but its timing) holds what the input holds. Counted frame by frame, the waving
@@ -647,6 +647,7 @@ def test_a_copy_a_frame_late_holds_as_its_input_where_a_frame_by_frame_mask_did_
         masks = M.held(p_in, min_frames)
         ratio = np.mean(M.hold_samples(late, masks)) / np.mean(M.hold_samples(p_in, masks))
         assert low < ratio < high, (min_frames, ratio)
+
 
 def hinged_pose(frames: int = 50) -> np.ndarray:
     """Rotations of a humanoid whose elbows and knees bend as hinges do (``motion.hinges``):
@@ -958,7 +959,6 @@ def test_gait_statistics_tell_real_styles_apart_on_real_walks(bandai_root):
         assert s["stance_width_cm"] > ranges["stance_width_cm"][1]  # wider too, within the tolerance
 
 
-
 def test_held_out_takes_a_frame_late_pass_every_judge_free_goal(bandai_root):
     """The instrument's known-good case on real motion: every held-out normal Bandai take a frame
     late (frames 1 on against frames 0 on), a restyle that changes nothing but its timing, reads
@@ -995,7 +995,6 @@ def test_held_out_takes_a_frame_late_pass_every_judge_free_goal(bandai_root):
 
     every, runs = hold_ratios_frame_by_frame()
     assert every > 1.08 and runs > 2.0, (every, runs)
-
 
 
 def real_statistic(bandai_root, read, action: str, *styles: str) -> list[list[float]]:
