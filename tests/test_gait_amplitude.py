@@ -469,6 +469,27 @@ def test_a_running_stream_bends_its_elbows_as_the_style_and_a_standing_one_not_a
     assert arms_of(GaitAmplitude(replace(FEET["input"], elbow_bend=run)), still_roots, still, still) is None
 
 
+def test_a_stream_shown_from_its_first_frame_eases_into_a_runs_bend_and_does_not_step_into_it():
+    """A stream running from its first frame (no step before it to read a speed from), shown
+    from that frame (a live stream): the elbows' bend eases from the restyle's towards the
+    style's over the gains' low-pass, each frame's change a small share of the whole. Settled
+    on the first step, as an offline clip's unshown lead-in is (and every stream was until
+    2026-12-08), the bend steps between the first two frames, all 34 degrees at once."""
+    from stylecast.motion.hinges import elbow_flexion
+
+    run = ((2.0, 0.0, 0.0), (5.0, 1.0, 70.0))
+    roots, q = bent_elbows(300, speed=5.0, mean=np.radians(104.0), swing=0.0)
+
+    def bend_of(first_frame_shown: bool) -> np.ndarray:
+        amplitude = GaitAmplitude(replace(FEET["input"], elbow_bend=run))
+        amplitude.first_frame_shown = first_frame_shown
+        return np.degrees(elbow_flexion(arms_of(amplitude, roots, q, q))[:, 0])
+
+    live, lead_in = bend_of(True), bend_of(False)
+    assert live[0] == pytest.approx(104.0, abs=0.1) and live[-1] == pytest.approx(70.0, abs=1.0)
+    assert np.abs(np.diff(live)).max() < 2.0  # degrees a frame, of 34 in all
+    assert np.abs(lead_in[1] - lead_in[0]) == pytest.approx(34.0, abs=0.1) and lead_in[-1] == pytest.approx(70.0)
+
 def bent_knees(n: int, speed: float, mean: float, swing: float = 0.5):
     """``swinging`` without the upper arms' swing, each knee (a hinge about X) bending
     ``swing`` radians either side of ``mean`` at 1.5 Hz."""

@@ -88,10 +88,12 @@ class FootLock:
         restyle has ended (``words.BlendSettings.first_fade_end``), its correction low-passed
         over ``fade_tau`` frames, towards the share ``aim`` (the intensity): the stance is
         taken at that share through it. ``lead_in``: frames before the shown ones (an offline
-        clip's mirrored lead-in), over which the stance follows freely (see ``StanceOffset``)."""
+        clip's mirrored lead-in), over which the stance follows freely (see ``StanceOffset``) and the
+        gait amplitude's gains settle (``GaitAmplitude.first_frame_shown``)."""
         lock = cls(skeleton, settings=settings, sight=delay)
         lock.stance.for_fade(fade_in, fade_tau)
         lock.stance.free_until, lock.stance.aim = int(lead_in), float(aim)
+        lock.amplitude.first_frame_shown = not lead_in
         return lock
 
     def set_offsets(self, offsets: np.ndarray) -> None:
